@@ -1,0 +1,15 @@
+"""maglev: identify linear models of a magnetic levitator from input-output data.
+
+The library is plain numpy/scipy/python-control: ``maglev.data`` (records),
+``maglev.estimate`` (ARX, ARMAX, OE, BJ, PEM), ``maglev.models`` (the fitted
+``PolyModel``), ``maglev.validate`` (FIT, compare, resid).  Hydra and MLflow appear
+only in the study/tracking modules.
+"""
+
+from .data import IOData
+from .estimate import armax, arx, bj, estimate, oe, pem
+from .models import FitReport, PolyModel
+from .structure import PolySpec
+
+__all__ = ["IOData", "PolyModel", "PolySpec", "FitReport", "arx", "armax", "oe", "bj", "pem", "estimate"]
+__version__ = "0.1.0"

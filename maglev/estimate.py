@@ -1,0 +1,360 @@
+"""Estimate ARX, ARMAX, OE, BJ and general polynomial models (MATLAB's arx/armax/oe/bj/pem).
+
+* ``arx`` is linear least squares.  With the default ``initial_condition="auto"`` it
+  reproduces MATLAB's default: regression rows t = na+1 … N, inputs before the first
+  sample taken as zero (the na pre-sample outputs are simply not predicted).
+  ``"zero"`` uses every row with all pre-sample data zero; ``"estimate"`` (and
+  ``"backcast"``) drops every row that needs pre-sample data.
+* ``armax``, ``oe``, ``bj`` and ``pem`` minimise the one-step prediction error with
+  Levenberg–Marquardt (:mod:`maglev.pem`) from several sound starting points
+  (pseudo-linear regression for ARMAX, Steiglitz–McBride for OE, OE plus a
+  Hannan–Rissanen noise model for BJ, plain ARX) and keep the best minimum, so that
+  lightly damped plants do not end in a poor local minimum.
+  ``initial_condition``: ``"zero"`` (filters start at rest), ``"estimate"`` (the
+  initial filter state is fitted by least squares and counted in d), ``"backcast"``
+  (fitted the same way but treated as a nuisance, not counted in d — our stand-in
+  for MATLAB's backward filtering), ``"auto"`` (``"estimate"`` when fitting the state
+  lowers the loss at the start point by more than 0.1 %, else ``"zero"``).
+
+All functions return a `PolyModel` with covariance λ̂ (JᵀJ)⁻¹, noise variance
+λ̂ = N·V/(N−d) and a `FitReport` with MATLAB's loss and information criteria.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .data import IOData
+from .initial_state import INITIAL_CONDITIONS
+from .models import FitReport, PolyModel
+from .pem import evaluate, minimise, project
+from .polynomials import filt, stabilize
+from .structure import PolySpec
+
+AUTO_STATE_GAIN = 1e-3
+START_RATIO = 3.0
+
+
+# ---------------------------------------------------------------------------- public API
+def arx(data: IOData, na: int, nb: int, nk: int, initial_condition: str = "auto") -> PolyModel:
+    """ARX  A(q) y = B(q) u + e  by least squares (see the module docstring for the rows used)."""
+    spec = PolySpec("arx", na=na, nb=nb, nk=nk)
+    y, u = _checked(data, spec, initial_condition)
+    first = {"auto": spec.na, "zero": 0}.get(initial_condition, spec.max_lag)
+    phi, target = _regression(y, u, spec, first)
+    q, r = np.linalg.qr(phi)
+    theta = _solve_triangular(r, q.T @ target, data)
+    e = target - phi @ theta
+    A, B, *_ = spec.polys(theta)
+    report = FitReport.from_residuals(
+        e, target, spec.n_params, 0,
+        method="least squares", iterations=0, termination="exact solution",
+        initial_condition=initial_condition,
+    )
+    return _model(spec, A, B, None, None, None, data, e, r, report)
+
+
+def armax(data: IOData, na: int, nb: int, nc: int, nk: int, initial_condition: str = "auto", **options) -> PolyModel:
+    """ARMAX  A(q) y = B(q) u + C(q) e  by prediction-error minimisation."""
+    return _pem(data, PolySpec("armax", na=na, nb=nb, nc=nc, nk=nk), initial_condition, **options)
+
+
+def oe(data: IOData, nb: int, nf: int, nk: int, initial_condition: str = "auto", **options) -> PolyModel:
+    """Output error  y = B(q)/F(q) u + e  by prediction-error minimisation."""
+    return _pem(data, PolySpec("oe", nb=nb, nf=nf, nk=nk), initial_condition, **options)
+
+
+def bj(data: IOData, nb: int, nc: int, nd: int, nf: int, nk: int, initial_condition: str = "auto", **options) -> PolyModel:
+    """Box–Jenkins  y = B(q)/F(q) u + C(q)/D(q) e  by prediction-error minimisation."""
+    return _pem(data, PolySpec("bj", nb=nb, nc=nc, nd=nd, nf=nf, nk=nk), initial_condition, **options)
+
+
+def pem(
+    data: IOData, na: int, nb: int, nc: int, nd: int, nf: int, nk: int,
+    initial_condition: str = "auto", **options,
+) -> PolyModel:
+    """General  A(q) y = B(q)/F(q) u + C(q)/D(q) e  by prediction-error minimisation."""
+    return _pem(data, PolySpec("pem", na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk), initial_condition, **options)
+
+
+def estimate(data: IOData, structure: str, orders, initial_condition: str = "auto", **options) -> PolyModel:
+    """Estimate by structure name and MATLAB order vector, e.g. ``estimate(d, "bj", [2, 2, 2, 2, 1])``."""
+    spec = PolySpec.from_orders(structure, orders)
+    if structure == "arx":
+        return arx(data, spec.na, spec.nb, spec.nk, initial_condition)
+    return _pem(data, spec, initial_condition, **options)
+
+
+# ---------------------------------------------------------------------------- checks
+def _checked(data: IOData, spec: PolySpec, initial_condition: str) -> tuple[np.ndarray, np.ndarray]:
+    """Refuse data that cannot support the requested model, with a message that says why."""
+    if not isinstance(data, IOData):
+        raise TypeError(f"{spec.structure}: data must be an IOData, got {type(data).__name__}")
+    if initial_condition not in INITIAL_CONDITIONS:
+        raise ValueError(
+            f"{spec.structure}: initial_condition must be one of {INITIAL_CONDITIONS}, got {initial_condition!r}"
+        )
+    src = data.name or "data"
+    need = spec.max_lag + 2 * spec.n_params + 1
+    if data.N < need:
+        raise ValueError(
+            f"{src}: {spec.label} has {spec.n_params} parameters and lags up to {spec.max_lag}; "
+            f"it needs at least {need} samples, the data has {data.N} (orders too large for the data)"
+        )
+    if np.ptp(data.y) == 0:
+        raise ValueError(f"{src}: output y is constant; there is nothing to identify")
+    if spec.nb:
+        if np.ptp(data.u) == 0:
+            raise ValueError(
+                f"{src}: input u is constant (= {data.u[0]:g}); it does not excite the system, "
+                "so no input-output model can be identified"
+            )
+        order = spec.nb + spec.nf
+        level = _excitation_level(data.u, order)
+        if level < 1e-9:
+            raise ValueError(
+                f"{src}: input u is not persistently exciting of order {order} (needed by {spec.label}); "
+                f"its lag covariance is singular (relative eigenvalue {level:.1e})"
+            )
+    return data.y, data.u
+
+
+def _excitation_level(u: np.ndarray, order: int) -> float:
+    """Smallest over largest eigenvalue of the order × order lag covariance of u."""
+    from scipy.linalg import toeplitz
+
+    x = u - u.mean()
+    r = np.array([x[: x.size - k] @ x[k:] for k in range(order)]) / x.size
+    if r[0] == 0:
+        return 0.0
+    eig = np.linalg.eigvalsh(toeplitz(r))
+    return float(max(eig[0], 0.0) / eig[-1])
+
+
+# ---------------------------------------------------------------------------- least squares
+def _regression(y: np.ndarray, u: np.ndarray, spec: PolySpec, first: int) -> tuple[np.ndarray, np.ndarray]:
+    """ARX regressors [-y(t-1) … -y(t-na), u(t-nk) … u(t-nk-nb+1)] for rows t ≥ first (pre-sample zero)."""
+    N = y.size
+    rows = N - first
+    phi = np.empty((rows, spec.na + spec.nb))
+    for i in range(1, spec.na + 1):
+        phi[:, i - 1] = -_lagged(y, i, first)
+    for j in range(spec.nb):
+        phi[:, spec.na + j] = _lagged(u, spec.nk + j, first)
+    return phi, y[first:]
+
+
+def _lagged(x: np.ndarray, lag: int, first: int) -> np.ndarray:
+    """x(t - lag) for t = first … N-1, zero before the record starts."""
+    N = x.size
+    out = np.zeros(N - first)
+    start = max(first - lag, 0)
+    offset = max(lag - first, 0)
+    out[offset:] = x[start : N - lag]
+    return out
+
+
+def _solve_triangular(r: np.ndarray, rhs: np.ndarray, data: IOData) -> np.ndarray:
+    diag = np.abs(np.diag(r))
+    if diag.size and (diag.min() <= 1e-12 * max(diag.max(), 1e-300)):
+        raise ValueError(
+            f"{data.name or 'data'}: the regression is singular — the data do not determine all "
+            "parameters (input not exciting enough, or orders too high)"
+        )
+    from scipy.linalg import solve_triangular
+
+    return solve_triangular(r, rhs)
+
+
+def _ls_arx(y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Plain ARX by least squares on fully measured rows; returns (A, B, residuals over all N)."""
+    spec = PolySpec("pem", na=na, nb=nb, nk=nk)
+    phi, target = _regression(y, u, spec, spec.max_lag)
+    theta, *_ = np.linalg.lstsq(phi, target, rcond=None)
+    A, B, *_ = spec.polys(theta)
+    e = filt(A, np.ones(1), y) - (filt(B, np.ones(1), u) if nb else 0.0)
+    return A, B, e
+
+
+def _ls_columns(target: np.ndarray, columns: list[np.ndarray], first: int) -> np.ndarray:
+    if not columns:
+        return np.zeros(0)
+    phi = np.column_stack([c[first:] for c in columns])
+    theta, *_ = np.linalg.lstsq(phi, target[first:], rcond=None)
+    return theta
+
+
+def _shift(x: np.ndarray, lag: int) -> np.ndarray:
+    out = np.zeros_like(x)
+    out[lag:] = x[: x.size - lag]
+    return out
+
+
+# ---------------------------------------------------------------------------- starting points
+def _high_order(n_params: int, N: int) -> int:
+    return int(min(max(3 * n_params, 10), 40, max(N // 50, 2)))
+
+
+def _steiglitz_mcbride(y, u, nb, nf, nk, F0=None, iterations: int = 30):
+    """OE start: refit B, F by least squares on data prefiltered by 1/F until F settles."""
+    if nf == 0:
+        _, B, _ = _ls_arx(y, u, 0, nb, nk)
+        return B, np.ones(1)
+    F = F0 if F0 is not None else _ls_arx(y, u, nf, nb, nk)[0]
+    F = stabilize(F)
+    B = np.zeros(nb + nk)
+    for _ in range(iterations):
+        yf, uf = filt(np.ones(1), F, y), filt(np.ones(1), F, u)
+        Fn, Bn, _ = _ls_arx(yf, uf, nf, nb, nk)
+        Fn = stabilize(Fn)
+        change = np.linalg.norm(Fn - F) / (np.linalg.norm(F) + 1e-12)
+        F, B = Fn, Bn
+        if change < 1e-7:
+            break
+    return B, F
+
+
+def _hannan_rissanen(v: np.ndarray, nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:
+    """ARMA start D v = C e: long AR for the innovations, then least squares for C and D."""
+    if nc == 0 and nd == 0:
+        return np.ones(1), np.ones(1)
+    n_ar = _high_order(nc + nd, v.size)
+    Dar, _, e = _ls_arx(v, np.zeros_like(v), n_ar, 0, 1)
+    cols = [-_shift(v, i) for i in range(1, nd + 1)] + [_shift(e, i) for i in range(1, nc + 1)]
+    theta = _ls_columns(v, cols, n_ar + max(nc, nd))
+    D = np.concatenate([[1.0], theta[:nd]])
+    C = np.concatenate([[1.0], theta[nd:]])
+    return stabilize(C), stabilize(D)
+
+
+def _starts(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
+    """Candidate starting parameter vectors for the structure."""
+    na, nb, nc, nd, nf, nk = spec.na, spec.nb, spec.nc, spec.nd, spec.nf, spec.nk
+    starts = []
+    if nf == 0 and nd == 0:  # ARMAX (or ARX-like pem): pseudo-linear regression and plain ARX
+        A, B, _ = _ls_arx(y, u, na, nb, nk)
+        starts.append(spec.theta(A, B))
+        if nc:
+            nh = _high_order(na + nb + nc, y.size)
+            _, _, ehat = _ls_arx(y, u, nh, max(nb, nh), nk)
+            cols = [-_shift(y, i) for i in range(1, na + 1)]
+            cols += [_shift(u, nk + j) for j in range(nb)]
+            cols += [_shift(ehat, i) for i in range(1, nc + 1)]
+            theta = _ls_columns(y, cols, nh + max(na, nb + nk, nc))
+            A, B, C, *_ = PolySpec("pem", na=na, nb=nb, nc=nc, nk=nk).polys(theta)
+            starts.append(spec.theta(A, B, stabilize(C)))
+        return starts
+    if na == 0:  # OE / BJ: Steiglitz–McBride for G, Hannan–Rissanen for the noise
+        B, F = _steiglitz_mcbride(y, u, nb, nf, nk)
+        C, D = _hannan_rissanen(y - filt(B, F, u), nc, nd)
+        starts.append(spec.theta(None, B, C, D, F))
+        Aarx, Barx, _ = _ls_arx(y, u, nf, nb, nk)
+        C2, D2 = _hannan_rissanen(y - filt(Barx, stabilize(Aarx), u), nc, nd)
+        starts.append(spec.theta(None, Barx, C2, D2, stabilize(Aarx)))
+        if nd:  # BJ holding an ARX model: F = D = A_arx, C = 1 (its loss is the ARX loss)
+            n = min(nf, nd)
+            Aarx, Barx, _ = _ls_arx(y, u, n, nb, nk)
+            Aarx = stabilize(Aarx)
+            starts.append(spec.theta(None, Barx, None, Aarx, Aarx))
+        return starts
+    # general: A from ARX, F starts at 1, noise from the ARX residual
+    A, B, e = _ls_arx(y, u, na, nb, nk)
+    C, D = _hannan_rissanen(e, nc, nd)
+    starts.append(spec.theta(A, B, C, D, None))
+    return starts
+
+
+# ---------------------------------------------------------------------------- PEM driver
+def _pem(
+    data: IOData,
+    spec: PolySpec,
+    initial_condition: str,
+    max_iterations: int = 100,
+    tolerance: float | None = None,
+) -> PolyModel:
+    y, u = _checked(data, spec, initial_condition)
+    starts = _starts(spec, y, u)
+    if spec.structure == "bj" or (spec.structure == "pem" and spec.na == 0 and spec.nf > 0):
+        starts.append(_bj_from_oe(spec, y, u, max_iterations, tolerance))
+    fit_states = _wants_states(spec, starts, y, u, initial_condition)
+    best = _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance)
+    ev = best.evaluation
+    n_initial = ev.n_initial if initial_condition != "backcast" else 0
+    mode = initial_condition
+    if initial_condition == "auto":
+        mode = "auto→estimate" if fit_states else "auto→zero"
+    report = FitReport.from_residuals(
+        ev.e, y, spec.n_params, n_initial,
+        method="prediction-error minimisation (Levenberg-Marquardt)",
+        iterations=best.iterations, termination=best.termination, initial_condition=mode,
+    )
+    A, B, C, D, F = spec.polys(ev.theta)
+    return _model(spec, A, B, C, D, F, data, ev.e, best.r_factor, report)
+
+
+def _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance):
+    """Minimise from the promising starts (loss within START_RATIO of the best start).
+
+    Starts far worse than the best are only tried when the promising ones end without
+    converging, which keeps the common case to one or two short runs.
+    """
+    losses = [evaluate(spec, project(spec, t), y, u, fit_states, False).loss for t in starts]
+    order = np.argsort(losses)
+    best = None
+    for rank, i in enumerate(order):
+        promising = losses[i] <= START_RATIO * losses[order[0]]
+        converged = best is not None and best.termination.startswith(("expected", "relative"))
+        if rank and not promising and converged:
+            break
+        result = minimise(spec, starts[i], y, u, fit_states, max_iterations, tolerance)
+        if best is None or result.evaluation.loss < best.evaluation.loss:
+            best = result
+    return best
+
+
+def _bj_from_oe(spec: PolySpec, y, u, max_iterations, tolerance) -> np.ndarray:
+    """BJ start: minimise the OE part first, then model its residual as ARMA."""
+    oe_spec = PolySpec("oe", nb=spec.nb, nf=spec.nf, nk=spec.nk)
+    oe_best = min(
+        (minimise(oe_spec, t, y, u, False, max_iterations, tolerance) for t in _starts(oe_spec, y, u)),
+        key=lambda m: m.evaluation.loss,
+    )
+    _, B, _, _, F = oe_spec.polys(oe_best.evaluation.theta)
+    C, D = _hannan_rissanen(oe_best.evaluation.e, spec.nc, spec.nd)
+    return spec.theta(None, B, C, D, F)
+
+
+def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condition: str) -> bool:
+    """Whether to fit initial states; "auto" decides at the best starting point."""
+    if initial_condition in ("estimate", "backcast"):
+        return True
+    if initial_condition == "zero":
+        return False
+    candidates = [project(spec, t) for t in starts]
+    losses = [evaluate(spec, t, y, u, False, False).loss for t in candidates]
+    theta0 = candidates[int(np.argmin(losses))]
+    zero = min(losses)
+    fitted = evaluate(spec, theta0, y, u, True, False).loss
+    return zero > 0 and (zero - fitted) / zero > AUTO_STATE_GAIN
+
+
+def _model(spec, A, B, C, D, F, data: IOData, e: np.ndarray, r: np.ndarray, report: FitReport) -> PolyModel:
+    """Wrap estimates in a PolyModel with λ̂ = N V/(N-d) and covariance λ̂ (RᵀR)⁻¹."""
+    N = e.size
+    d = report.n_params + report.n_initial
+    noise_variance = float(e @ e) / max(N - d, 1)
+    try:
+        r_inv = np.linalg.inv(r)
+        covariance = noise_variance * (r_inv @ r_inv.T)
+    except np.linalg.LinAlgError:
+        covariance = np.full((spec.n_params, spec.n_params), np.inf)
+    one = np.ones(1)
+    return PolyModel(
+        A=A, B=B,
+        C=one if C is None else C,
+        D=one if D is None else D,
+        F=one if F is None else F,
+        nk=spec.nk, Ts=data.Ts, structure=spec.structure,
+        noise_variance=noise_variance, covariance=covariance, report=report,
+        name=f"{spec.label} · {data.name}" if data.name else spec.label,
+    )

@@ -1,0 +1,55 @@
+"""Least-squares fit of a predictor's initial state (MATLAB's InitialCondition options).
+
+Predictions and prediction errors are sums of IIR filters run from an unknown
+initial state.  Their output is the zero-state response plus a linear combination of
+free responses, so the state that best explains the first samples is a small linear
+least-squares problem over the transient window only (free responses of stable
+filters die out; we stop once they are below 1e-10).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .polynomials import free_responses, transient_length
+
+INITIAL_CONDITIONS = ("zero", "estimate", "backcast", "auto")
+
+
+def free_response_matrix(filters: list[tuple[np.ndarray, np.ndarray]], n: int) -> np.ndarray:
+    """Free responses of all ``(num, den)`` filters, truncated to their common transient window.
+
+    Returns an ``M × k`` matrix with ``M ≤ n`` rows (the transient window) and one
+    column per filter state.
+    """
+    filters = [(np.asarray(b, float), np.asarray(a, float)) for b, a in filters]
+    active = [(b, a) for b, a in filters if np.any(b != 0)]
+    if not active:
+        return np.zeros((0, 0))
+    m = max(transient_length(a, n) for _, a in active)
+    blocks = [free_responses(b, a, m) for b, a in active]
+    return np.hstack(blocks) if blocks else np.zeros((m, 0))
+
+
+def fit_initial_state(
+    residual: np.ndarray,
+    filters: list[tuple[np.ndarray, np.ndarray]],
+    mode: str = "estimate",
+) -> tuple[np.ndarray, int]:
+    """The correction to add to a zero-state prediction and the number of fitted states.
+
+    ``residual`` is target minus zero-state prediction; the correction is the
+    combination of free responses that minimises its squared norm.  "estimate",
+    "backcast" and "auto" all fit the state here (they differ only in how
+    :mod:`maglev.estimate` counts and uses it); "zero" returns no correction.
+    """
+    correction = np.zeros_like(residual)
+    if mode == "zero":
+        return correction, 0
+    phi = free_response_matrix(filters, residual.size)
+    if phi.size == 0:
+        return correction, 0
+    m = phi.shape[0]
+    x, _, rank, _ = np.linalg.lstsq(phi, residual[:m], rcond=1e-10)
+    correction[:m] = phi @ x
+    return correction, int(rank)

@@ -1,0 +1,411 @@
+"""The fitted polynomial model, MATLAB's ``idpoly``:  A(q) y = B(q)/F(q) u + C(q)/D(q) e.
+
+A `PolyModel` carries its polynomials (arrays in q⁻¹; A, C, D, F monic, B with nk
+leading zeros), the estimated parameter covariance and noise variance, and a
+`FitReport` with the estimation diagnostics.  It predicts k steps ahead, simulates,
+computes residuals, and converts to python-control transfer functions for Bode and
+pole-zero work.  Estimation lives in :mod:`maglev.estimate`; this module only
+evaluates a given model.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .data import IOData
+from .initial_state import INITIAL_CONDITIONS, fit_initial_state
+from .polynomials import filt, polymul
+
+STRUCTURES = ("arx", "armax", "oe", "bj", "pem")
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """Estimation diagnostics, with MATLAB's definitions (see ``maglev.estimate``)."""
+
+    method: str
+    n_samples: int
+    n_params: int
+    n_initial: int
+    loss: float
+    fpe: float
+    aic: float
+    aicc: float
+    bic: float
+    naic: float
+    fit_percent: float
+    iterations: int
+    termination: str
+    initial_condition: str
+
+    @property
+    def mse(self) -> float:
+        """Mean squared prediction error on the estimation data (equals ``loss``)."""
+        return self.loss
+
+    @classmethod
+    def from_residuals(
+        cls,
+        e: np.ndarray,
+        y: np.ndarray,
+        n_params: int,
+        n_initial: int,
+        **info,
+    ) -> "FitReport":
+        """Compute loss and information criteria from estimation residuals.
+
+        V = Σe²/N, d = parameters + estimated initial values,
+        FPE = V(1+d/N)/(1-d/N), AIC = N ln V + 2d + N(ln 2π + 1),
+        AICc = AIC + 2d(d+1)/(N-d-1), BIC = N ln V + d ln N + N(ln 2π + 1),
+        nAIC = ln V + 2d/N.
+        """
+        N = int(e.size)
+        V = float(e @ e) / N
+        d = n_params + n_initial
+        logV = math.log(V) if V > 0 else -math.inf
+        const = N * (math.log(2 * math.pi) + 1)
+        aic = N * logV + 2 * d + const
+        return cls(
+            n_samples=N,
+            n_params=n_params,
+            n_initial=n_initial,
+            loss=V,
+            fpe=V * (1 + d / N) / (1 - d / N) if d < N else math.inf,
+            aic=aic,
+            aicc=aic + 2 * d * (d + 1) / (N - d - 1) if N - d - 1 > 0 else math.inf,
+            bic=N * logV + d * math.log(N) + const,
+            naic=logV + 2 * d / N,
+            fit_percent=_fit(y, y - e),
+            **info,
+        )
+
+
+def _fit(y: np.ndarray, yhat: np.ndarray) -> float:
+    denom = np.linalg.norm(y - y.mean())
+    if denom == 0:
+        return -math.inf
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / denom))
+
+
+@dataclass(frozen=True)
+class PolyModel:
+    """A(q) y(t) = B(q)/F(q) u(t) + C(q)/D(q) e(t), e white with variance ``noise_variance``.
+
+    Parameters are ordered ``a1..ana, b(nk)..b(nk+nb-1), c1..cnc, d1..dnd, f1..fnf``
+    (the order of ``parameters`` and of ``covariance``).
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    F: np.ndarray
+    nk: int
+    Ts: float
+    structure: str = "pem"
+    noise_variance: float = 1.0
+    covariance: np.ndarray | None = None
+    report: FitReport | None = None
+    name: str | None = None
+    meta: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        for key in "ACDF":
+            p = np.atleast_1d(np.asarray(getattr(self, key), dtype=float))
+            if p.ndim != 1 or p.size == 0 or p[0] != 1.0:
+                raise ValueError(f"PolyModel: {key} must be a monic coefficient array [1, ...], got {p!r}")
+            object.__setattr__(self, key, p)
+        B = np.atleast_1d(np.asarray(self.B, dtype=float))
+        if B.ndim != 1:
+            raise ValueError(f"PolyModel: B must be a 1-D coefficient array, got shape {B.shape}")
+        if self.nk < 0 or B.size < self.nk or np.any(B[: self.nk] != 0):
+            raise ValueError(f"PolyModel: B must start with nk={self.nk} zeros, got {B!r}")
+        object.__setattr__(self, "B", B)
+        if self.structure not in STRUCTURES:
+            raise ValueError(f"PolyModel: structure must be one of {STRUCTURES}, got {self.structure!r}")
+        if not (self.Ts > 0):
+            raise ValueError(f"PolyModel: Ts must be positive, got {self.Ts!r}")
+        if self.covariance is not None:
+            object.__setattr__(self, "covariance", np.asarray(self.covariance, dtype=float))
+
+    # ------------------------------------------------------------------ orders and parameters
+    @property
+    def na(self) -> int:
+        return self.A.size - 1
+
+    @property
+    def nb(self) -> int:
+        return self.B.size - self.nk
+
+    @property
+    def nc(self) -> int:
+        return self.C.size - 1
+
+    @property
+    def nd(self) -> int:
+        return self.D.size - 1
+
+    @property
+    def nf(self) -> int:
+        return self.F.size - 1
+
+    @property
+    def orders(self) -> tuple[int, ...]:
+        """Orders in MATLAB's order for the structure (e.g. ``[na nb nk]`` for ARX)."""
+        return {
+            "arx": (self.na, self.nb, self.nk),
+            "armax": (self.na, self.nb, self.nc, self.nk),
+            "oe": (self.nb, self.nf, self.nk),
+            "bj": (self.nb, self.nc, self.nd, self.nf, self.nk),
+            "pem": (self.na, self.nb, self.nc, self.nd, self.nf, self.nk),
+        }[self.structure]
+
+    @property
+    def label(self) -> str:
+        """MATLAB-like label, e.g. ``bj[2 2 2 2 1]``."""
+        return f"{self.structure}[{' '.join(str(o) for o in self.orders)}]"
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """Free parameters in the documented order."""
+        return np.concatenate([self.A[1:], self.B[self.nk :], self.C[1:], self.D[1:], self.F[1:]])
+
+    @property
+    def parameter_names(self) -> list[str]:
+        names = [f"a{i}" for i in range(1, self.na + 1)]
+        names += [f"b{self.nk + i}" for i in range(self.nb)]
+        names += [f"c{i}" for i in range(1, self.nc + 1)]
+        names += [f"d{i}" for i in range(1, self.nd + 1)]
+        names += [f"f{i}" for i in range(1, self.nf + 1)]
+        return names
+
+    @property
+    def n_params(self) -> int:
+        return self.parameters.size
+
+    @property
+    def std_errors(self) -> np.ndarray | None:
+        """One-sigma standard errors of ``parameters`` (from ``covariance``)."""
+        if self.covariance is None:
+            return None
+        return np.sqrt(np.clip(np.diag(self.covariance), 0, None))
+
+    # ------------------------------------------------------------------ transfer functions
+    @property
+    def G_polys(self) -> tuple[np.ndarray, np.ndarray]:
+        """(numerator, denominator) of G = B/(A F) in q⁻¹."""
+        return self.B, polymul(self.A, self.F)
+
+    @property
+    def H_polys(self) -> tuple[np.ndarray, np.ndarray]:
+        """(numerator, denominator) of H = C/(A D) in q⁻¹."""
+        return self.C, polymul(self.A, self.D)
+
+    def poles(self) -> np.ndarray:
+        """Discrete-time poles of G (roots of A·F in z)."""
+        den = polymul(self.A, self.F)
+        return np.roots(den) if den.size > 1 else np.array([], dtype=complex)
+
+    def zeros(self) -> np.ndarray:
+        """Finite discrete-time zeros of G other than the nk delays at the origin."""
+        b = np.trim_zeros(self.B, "f")
+        return np.roots(b) if b.size > 1 else np.array([], dtype=complex)
+
+    def noise_poles(self) -> np.ndarray:
+        den = polymul(self.A, self.D)
+        return np.roots(den) if den.size > 1 else np.array([], dtype=complex)
+
+    def noise_zeros(self) -> np.ndarray:
+        return np.roots(self.C) if self.C.size > 1 else np.array([], dtype=complex)
+
+    def dcgain(self) -> float:
+        """Static gain G(1)."""
+        num, den = self.G_polys
+        return float(num.sum() / den.sum())
+
+    def freqresp(self, w: np.ndarray) -> np.ndarray:
+        """G(e^{jωTs}) at angular frequencies ``w`` in rad/s."""
+        z_inv = np.exp(-1j * np.asarray(w, dtype=float) * self.Ts)
+        num, den = self.G_polys
+        return np.polyval(num[::-1], z_inv) / np.polyval(den[::-1], z_inv)
+
+    def to_control(self):
+        """(G, H) as ``control.TransferFunction`` in z with ``dt = Ts``."""
+        import control as ct
+
+        label = self.name or self.label
+        return (
+            _tf_z(*self.G_polys, self.Ts, f"G {label}", ct),
+            _tf_z(*self.H_polys, self.Ts, f"H {label}", ct),
+        )
+
+    # ------------------------------------------------------------------ signals
+    def simulate(
+        self,
+        u: np.ndarray | IOData,
+        noise: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Output G u (+ H e if ``noise`` e is given), from zero initial state."""
+        u = u.u if isinstance(u, IOData) else np.asarray(u, dtype=float)
+        y = filt(*self.G_polys, u)
+        if noise is not None:
+            noise = np.asarray(noise, dtype=float)
+            if noise.shape != u.shape:
+                raise ValueError(f"simulate: noise has shape {noise.shape}, expected {u.shape}")
+            y = y + filt(*self.H_polys, noise)
+        return y
+
+    def predictor(self, horizon: int | float = 1) -> tuple[tuple, tuple]:
+        """Filters of the k-step predictor ŷ = Wu u + Wy y as ((num_u, den_u), (num_y, den_y)).
+
+        With H̄_k the first k impulse-response terms of H = C/(A D):
+        Wu = H̄_k D B / (C F) and Wy = 1 - H̄_k A D / C; ``inf`` gives simulation (Wy = 0).
+        """
+        k = _check_horizon(horizon)
+        if k == math.inf:
+            return self.G_polys, (np.array([0.0]), np.array([1.0]))
+        h_bar = filt(*self.H_polys, np.r_[1.0, np.zeros(k - 1)])
+        num_u = polymul(h_bar, self.D, self.B)
+        den_u = polymul(self.C, self.F)
+        ad = polymul(h_bar, self.A, self.D)
+        num_y = _sub(self.C, ad)
+        return (num_u, den_u), (num_y, self.C.copy())
+
+    def predict(
+        self,
+        data: IOData,
+        horizon: int | float = 1,
+        initial_condition: str = "zero",
+    ) -> np.ndarray:
+        """k-step-ahead prediction of ``data.y`` (``horizon=inf`` simulates).
+
+        ``initial_condition="estimate"`` fits the predictor's initial state to the
+        data by least squares (as MATLAB's ``compare`` and ``predict`` do by default).
+        """
+        (nu, du), (ny, dy) = self.predictor(horizon)
+        yhat = filt(nu, du, data.u) + filt(ny, dy, data.y)
+        return yhat + self._initial_correction(data.y - yhat, [(nu, du), (ny, dy)], initial_condition)
+
+    def residuals(self, data: IOData, initial_condition: str = "zero") -> np.ndarray:
+        """One-step prediction errors e = D/C (A y - B/F u)."""
+        return data.y - self.predict(data, 1, initial_condition)
+
+    def _initial_correction(self, residual, filters, initial_condition: str) -> np.ndarray:
+        if initial_condition not in INITIAL_CONDITIONS:
+            raise ValueError(
+                f"initial_condition must be one of {INITIAL_CONDITIONS}, got {initial_condition!r}"
+            )
+        if initial_condition == "zero":
+            return np.zeros_like(residual)
+        correction, _ = fit_initial_state(residual, filters, initial_condition)
+        return correction
+
+    # ------------------------------------------------------------------ (de)serialisation
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary; :meth:`from_dict` restores an identical model."""
+        return {
+            "structure": self.structure,
+            "orders": list(self.orders),
+            "Ts": self.Ts,
+            "nk": self.nk,
+            "A": self.A.tolist(),
+            "B": self.B.tolist(),
+            "C": self.C.tolist(),
+            "D": self.D.tolist(),
+            "F": self.F.tolist(),
+            "noise_variance": self.noise_variance,
+            "covariance": None if self.covariance is None else self.covariance.tolist(),
+            "report": None if self.report is None else asdict(self.report),
+            "name": self.name,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PolyModel":
+        report = d.get("report")
+        return cls(
+            A=np.array(d["A"], dtype=float),
+            B=np.array(d["B"], dtype=float),
+            C=np.array(d["C"], dtype=float),
+            D=np.array(d["D"], dtype=float),
+            F=np.array(d["F"], dtype=float),
+            nk=int(d["nk"]),
+            Ts=float(d["Ts"]),
+            structure=d.get("structure", "pem"),
+            noise_variance=float(d.get("noise_variance", 1.0)),
+            covariance=None if d.get("covariance") is None else np.array(d["covariance"], dtype=float),
+            report=None if report is None else FitReport(**report),
+            name=d.get("name"),
+        )
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=1)
+
+    @classmethod
+    def from_json(cls, text: str) -> "PolyModel":
+        return cls.from_dict(json.loads(text))
+
+    # ------------------------------------------------------------------ display
+    def summary(self) -> str:
+        """Human-readable description: polynomials with standard errors and the fit report."""
+        lines = [f"{self.label}  Ts = {self.Ts:g} s" + (f"  ({self.name})" if self.name else "")]
+        lines.append("  A(q) y(t) = B(q)/F(q) u(t) + C(q)/D(q) e(t)")
+        sd = self.std_errors
+        names = self.parameter_names
+        for letter in "ABCDF":
+            p = getattr(self, letter)
+            if letter != "B" and p.size == 1:
+                continue
+            terms = []
+            for i, c in enumerate(p):
+                if letter == "B" and i < self.nk:
+                    continue
+                term = f"{c:+.5g}" + (f" q^-{i}" if i else "")
+                key = f"{letter.lower()}{i}"
+                if sd is not None and key in names:
+                    term += f" (±{sd[names.index(key)]:.2g})"
+                terms.append(term)
+            lines.append(f"  {letter}(q) = " + " ".join(terms))
+        lines.append(f"  noise variance = {self.noise_variance:.4g}")
+        if self.report is not None:
+            r = self.report
+            lines.append(
+                f"  fit to estimation data = {r.fit_percent:.2f} %  (one-step), "
+                f"MSE = {r.loss:.4g}, FPE = {r.fpe:.4g}, AIC = {r.aic:.6g}, BIC = {r.bic:.6g}"
+            )
+            lines.append(
+                f"  {r.method}: {r.iterations} iterations, {r.termination}; "
+                f"N = {r.n_samples}, d = {r.n_params} + {r.n_initial} initial values "
+                f"(initial_condition = {r.initial_condition})"
+            )
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return f"PolyModel({self.label}, Ts={self.Ts:g})"
+
+
+def _check_horizon(horizon) -> int | float:
+    if horizon == math.inf or horizon is None:
+        return math.inf
+    if isinstance(horizon, (bool, np.bool_)) or not float(horizon).is_integer() or horizon < 1:
+        raise ValueError(f"prediction horizon must be a positive integer or inf, got {horizon!r}")
+    return int(horizon)
+
+
+def _sub(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    n = max(p.size, q.size)
+    out = np.zeros(n)
+    out[: p.size] += p
+    out[: q.size] -= q
+    return out
+
+
+def _tf_z(num: np.ndarray, den: np.ndarray, Ts: float, name: str, ct):
+    """Transfer function in z from coefficient arrays in q⁻¹ (pad both to one length)."""
+    n = max(num.size, den.size)
+    num_z = np.concatenate([num, np.zeros(n - num.size)])
+    den_z = np.concatenate([den, np.zeros(n - den.size)])
+    return ct.tf(num_z, den_z, Ts, name=name)

@@ -1,0 +1,107 @@
+"""Polynomials in the delay operator q⁻¹ and the filtering built on them.
+
+Every model in maglev is a ratio of polynomials in q⁻¹ stored as coefficient arrays
+(``[1, a1, a2, ...]`` for monic ones).  This module holds the few operations the
+estimators and predictors need: products, stability projection by root reflection,
+IIR filtering with optional initial states, and the free responses of a filter
+(used to fit initial states by least squares).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import lfilter
+
+
+def polymul(*polys: np.ndarray) -> np.ndarray:
+    """Product of polynomials in q⁻¹ (coefficient convolution)."""
+    out = np.array([1.0])
+    for p in polys:
+        out = np.convolve(out, np.asarray(p, dtype=float))
+    return out
+
+
+def n_states(num: np.ndarray, den: np.ndarray) -> int:
+    """Number of direct-form-II-transposed states of ``num/den``."""
+    return max(len(num), len(den)) - 1
+
+
+def filt(num: np.ndarray, den: np.ndarray, x: np.ndarray, zi: np.ndarray | None = None) -> np.ndarray:
+    """Filter ``x`` through ``num(q⁻¹)/den(q⁻¹)``; ``zi`` are the filter's initial states."""
+    n = n_states(num, den)
+    if n == 0:
+        return (num[0] / den[0]) * x
+    num, den = _pad(num, n + 1), _pad(den, n + 1)
+    if zi is None:
+        return lfilter(num, den, x)
+    y, _ = lfilter(num, den, x, zi=zi)
+    return y
+
+
+def free_responses(num: np.ndarray, den: np.ndarray, n: int) -> np.ndarray:
+    """Columns: the first ``n`` output samples of ``num/den`` started from each unit state.
+
+    The output of the filter from initial state ``zi`` is ``filt(x) + free @ zi``; a
+    least-squares fit of ``zi`` therefore only needs these columns.  In direct form II
+    transposed the zero-input response from ``zi`` is the impulse response of
+    ``(zi[0] + zi[1] q⁻¹ + …)/den``, so column i is that of ``1/den`` delayed by i.
+    """
+    k = n_states(num, den)
+    if k == 0:
+        return np.zeros((n, 0))
+    impulse = np.zeros(n)
+    impulse[0] = 1.0
+    h = lfilter([1.0], np.asarray(den, dtype=float), impulse)
+    cols = np.zeros((n, k))
+    for i in range(min(k, n)):
+        cols[i:, i] = h[: n - i]
+    return cols
+
+
+def transient_length(den: np.ndarray, n_max: int, tol: float = 1e-10) -> int:
+    """Samples after which a free response of ``1/den`` has decayed below ``tol`` (at most ``n_max``)."""
+    roots = np.roots(den) if len(den) > 1 else np.array([])
+    radius = float(np.max(np.abs(roots))) if roots.size else 0.0
+    order = max(len(den) - 1, 1)
+    if radius >= 1.0:
+        return n_max
+    if radius <= 0.0:
+        return min(n_max, order + 1)
+    # r^n * n^order bound: be generous with repeated/clustered roots.
+    n = int(np.ceil(np.log(tol) / np.log(radius))) * 2 + 10 * order
+    return int(min(n_max, max(n, order + 1)))
+
+
+def is_stable(p: np.ndarray, margin: float = 0.0) -> bool:
+    """True if all roots of ``p(q⁻¹)`` (as a polynomial in z) lie strictly inside the unit circle."""
+    if len(p) <= 1:
+        return True
+    return bool(np.all(np.abs(np.roots(p)) < 1.0 - margin))
+
+
+def stabilize(p: np.ndarray) -> np.ndarray:
+    """Reflect roots outside the unit circle to their mirror images 1/conj(r) (monic kept).
+
+    This keeps the magnitude response shape (up to a constant) while making the
+    polynomial minimum-phase, as MATLAB does for C, D and F during estimation.
+    """
+    p = np.asarray(p, dtype=float)
+    if len(p) <= 1:
+        return p.copy()
+    roots = np.roots(p)
+    outside = np.abs(roots) > 1.0
+    if not outside.any():
+        return p.copy()
+    roots[outside] = 1.0 / np.conj(roots[outside])
+    # keep roots marginally inside so predictors stay strictly stable
+    on_circle = np.abs(np.abs(roots) - 1.0) < 1e-8
+    roots[on_circle] *= 1.0 - 1e-6
+    q = np.real(np.poly(roots))
+    return q * (p[0] / q[0])
+
+
+def _pad(p: np.ndarray, n: int) -> np.ndarray:
+    p = np.asarray(p, dtype=float)
+    if len(p) >= n:
+        return p
+    return np.concatenate([p, np.zeros(n - len(p))])

@@ -1,0 +1,115 @@
+"""Model structure specifications: which polynomials are free and of which orders.
+
+A `PolySpec` is the *unfitted* model (scikit-learn's estimator spec): it validates
+the orders once, knows the parameter layout ``[a, b, c, d, f]`` and turns a
+parameter vector into the five polynomials.  MATLAB's order conventions are kept:
+``arx [na nb nk]``, ``armax [na nb nc nk]``, ``oe [nb nf nk]``,
+``bj [nb nc nd nf nk]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+ORDER_NAMES = {
+    "arx": ("na", "nb", "nk"),
+    "armax": ("na", "nb", "nc", "nk"),
+    "oe": ("nb", "nf", "nk"),
+    "bj": ("nb", "nc", "nd", "nf", "nk"),
+    "pem": ("na", "nb", "nc", "nd", "nf", "nk"),
+}
+
+
+@dataclass(frozen=True)
+class PolySpec:
+    """Orders of A(q) y = B(q)/F(q) u + C(q)/D(q) e for one structure."""
+
+    structure: str
+    na: int = 0
+    nb: int = 0
+    nc: int = 0
+    nd: int = 0
+    nf: int = 0
+    nk: int = 1
+
+    def __post_init__(self) -> None:
+        if self.structure not in ORDER_NAMES:
+            raise ValueError(f"unknown structure {self.structure!r}; expected one of {list(ORDER_NAMES)}")
+        for key in ("na", "nb", "nc", "nd", "nf", "nk"):
+            value = getattr(self, key)
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+                if isinstance(value, (float, np.floating)) and float(value).is_integer():
+                    object.__setattr__(self, key, int(value))
+                    value = int(value)
+                else:
+                    raise ValueError(f"{self.structure}: order {key} must be an integer >= 0, got {value!r}")
+            if value < 0:
+                raise ValueError(f"{self.structure}: order {key} must be >= 0, got {value}")
+            object.__setattr__(self, key, int(value))
+        if self.structure in ("oe", "bj") and self.nb < 1:
+            raise ValueError(f"{self.structure}: nb must be >= 1 (a model with no input path), got {self.nb}")
+        if self.structure == "arx" and self.na + self.nb == 0:
+            raise ValueError("arx: na and nb are both 0; there is nothing to estimate")
+        free = {"arx": ("na", "nb"), "armax": ("na", "nb", "nc"), "oe": ("nb", "nf"),
+                "bj": ("nb", "nc", "nd", "nf"), "pem": ("na", "nb", "nc", "nd", "nf")}[self.structure]
+        for key in ("na", "nc", "nd", "nf"):
+            if key not in free and getattr(self, key) != 0:
+                raise ValueError(f"{self.structure}: has no {key} (orders are {list(ORDER_NAMES[self.structure])})")
+
+    @classmethod
+    def from_orders(cls, structure: str, orders) -> "PolySpec":
+        """Build from a MATLAB order vector, e.g. ``("bj", [2, 2, 2, 2, 1])``."""
+        names = ORDER_NAMES.get(structure)
+        if names is None:
+            raise ValueError(f"unknown structure {structure!r}; expected one of {list(ORDER_NAMES)}")
+        orders = list(orders)
+        if len(orders) != len(names):
+            raise ValueError(
+                f"{structure} takes orders [{' '.join(names)}] ({len(names)} numbers), got {orders}"
+            )
+        return cls(structure, **dict(zip(names, orders)))
+
+    @property
+    def orders(self) -> tuple[int, ...]:
+        return tuple(getattr(self, k) for k in ORDER_NAMES[self.structure])
+
+    @property
+    def label(self) -> str:
+        return f"{self.structure}[{' '.join(str(o) for o in self.orders)}]"
+
+    @property
+    def n_params(self) -> int:
+        return self.na + self.nb + self.nc + self.nd + self.nf
+
+    @property
+    def max_lag(self) -> int:
+        return max(self.na, self.nb + self.nk - 1, self.nc, self.nd, self.nf, 0)
+
+    def polys(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(A, B, C, D, F) from the parameter vector ``[a, b, c, d, f]``."""
+        theta = np.asarray(theta, dtype=float)
+        i = 0
+        out = []
+        for key in ("na", "nb", "nc", "nd", "nf"):
+            n = getattr(self, key)
+            part = theta[i : i + n]
+            i += n
+            if key == "nb":
+                out.append(np.concatenate([np.zeros(self.nk), part]))
+            else:
+                out.append(np.concatenate([[1.0], part]))
+        return tuple(out)
+
+    def theta(self, A=None, B=None, C=None, D=None, F=None) -> np.ndarray:
+        """Parameter vector from polynomials (missing monic ones are 1, missing B is 0)."""
+        parts = []
+        for key, p in zip(("na", "nb", "nc", "nd", "nf"), (A, B, C, D, F)):
+            n = getattr(self, key)
+            if key == "nb":
+                vals = np.zeros(n) if p is None else np.asarray(p, float)[self.nk : self.nk + n]
+            else:
+                vals = np.zeros(n) if p is None else np.asarray(p, float)[1 : 1 + n]
+            parts.append(np.pad(vals, (0, n - vals.size)))
+        return np.concatenate(parts)
