@@ -27,15 +27,17 @@ import numpy as np
 from .data import IOData
 from .initial_state import INITIAL_CONDITIONS
 from .models import FitReport, PolyModel
-from .pem import evaluate, minimise, project
+from .pem import CONVERGED, evaluate, minimise, project
 from .polynomials import filt, stabilize
 from .structure import PolySpec
+from .threads import single_threaded_blas
 
 AUTO_STATE_GAIN = 1e-3
-START_RATIO = 3.0
+START_RATIO = 10.0
 
 
 # ---------------------------------------------------------------------------- public API
+@single_threaded_blas
 def arx(data: IOData, na: int, nb: int, nk: int, initial_condition: str = "auto") -> PolyModel:
     """ARX  A(q) y = B(q) u + e  by least squares (see the module docstring for the rows used)."""
     spec = PolySpec("arx", na=na, nb=nb, nk=nk)
@@ -120,14 +122,13 @@ def _checked(data: IOData, spec: PolySpec, initial_condition: str) -> tuple[np.n
 
 
 def _excitation_level(u: np.ndarray, order: int) -> float:
-    """Smallest over largest eigenvalue of the order × order lag covariance of u."""
-    from scipy.linalg import toeplitz
-
+    """Smallest over largest eigenvalue of the Gram matrix of ``order`` lagged copies of u."""
     x = u - u.mean()
-    r = np.array([x[: x.size - k] @ x[k:] for k in range(order)]) / x.size
-    if r[0] == 0:
+    n = x.size - order + 1
+    lags = np.column_stack([x[order - 1 - k : order - 1 - k + n] for k in range(order)])
+    eig = np.linalg.eigvalsh(lags.T @ lags)
+    if eig[-1] <= 0:
         return 0.0
-    eig = np.linalg.eigvalsh(toeplitz(r))
     return float(max(eig[0], 0.0) / eig[-1])
 
 
@@ -265,6 +266,7 @@ def _starts(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
 
 
 # ---------------------------------------------------------------------------- PEM driver
+@single_threaded_blas
 def _pem(
     data: IOData,
     spec: PolySpec,
@@ -303,7 +305,7 @@ def _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance):
     best = None
     for rank, i in enumerate(order):
         promising = losses[i] <= START_RATIO * losses[order[0]]
-        converged = best is not None and best.termination.startswith(("expected", "relative"))
+        converged = best is not None and best.termination.startswith(CONVERGED)
         if rank and not promising and converged:
             break
         result = minimise(spec, starts[i], y, u, fit_states, max_iterations, tolerance)

@@ -11,9 +11,10 @@ five ``lfilter`` calls regardless of the order:
 Each iteration takes a QR factorisation of the Jacobian and solves the damped
 Gauss–Newton step on the small triangular system, so retries with a larger damping
 cost nothing extra.  C, D and F are kept stable by reflecting roots that leave the
-unit circle.  With ``initial_condition="estimate"`` the filter states are fitted by
-least squares at every evaluation and the Jacobian is projected accordingly
-(variable projection, Kaufman's approximation).
+unit circle.  With ``initial_condition="estimate"`` the initial state (the
+polynomial z of the zero-input response z/(C F) δ) is fitted by least squares at
+every evaluation and the Jacobian is projected on the complement of the state
+responses (variable projection, Kaufman's form), whose derivatives are exact.
 """
 
 from __future__ import annotations
@@ -21,12 +22,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import qr
 
-from .initial_state import free_response_matrix
-from .polynomials import filt, polymul, stabilize
+from .polynomials import filt, polymul, stabilize, transient_length
 from .structure import PolySpec
+from .threads import single_threaded_blas
 
-MAX_RETRIES = 12  # damping grows 10x per retry: 1e-4 ... 1e7 relative to diag(JᵀJ)
+MAX_RETRIES = 10  # damping grows ×2, ×4, ×8 … per failed try: past 1e5 × diag(JᵀJ) after ten
+NEGLIGIBLE = 1e3  # expected improvements below 1e3 × tolerance count as converged at a stall
 
 
 @dataclass
@@ -59,26 +62,60 @@ def evaluate(
     w = filt(B, F, u) if spec.nb else np.zeros_like(u)
     v = (filt(A, np.ones(1), y) if spec.na else y) - w
     e = filt(D, C, v)
-    phi = None
+    s = None
+    basis = np.zeros((0, 0))
     if fit_states:
-        phi = free_response_matrix([(polymul(D, A), C), (polymul(D, B), polymul(C, F))], y.size)
-        m = phi.shape[0]
-        if m:
-            x, *_ = np.linalg.lstsq(phi, -e[:m], rcond=1e-10)
-            e = e.copy()
-            e[:m] += phi @ x
-    jac = _jacobian(spec, A, B, C, D, F, y, u, w, v, e) if jacobian else None
-    n_initial = 0
-    if phi is not None and phi.size and jac is not None:
-        m = phi.shape[0]
-        n_initial = int(np.linalg.matrix_rank(phi))
-        coef, *_ = np.linalg.lstsq(phi, jac[:m], rcond=1e-10)
-        jac[:m] -= phi @ coef
-    return Evaluation(theta, e, float(e @ e) / e.size, jac, n_initial)
+        basis = orthonormal_basis(state_responses(spec, C, F, y.size))
+        m = basis.shape[0]
+        if basis.size:
+            s = np.zeros_like(e)
+            s[:m] = -basis @ (basis.T @ e[:m])  # least-squares initial-state response
+            e = e + s
+    jac = _jacobian(spec, A, B, C, D, F, y, u, w, v, e, s) if jacobian else None
+    if basis.size and jac is not None:
+        m = basis.shape[0]
+        jac[:m] -= basis @ (basis.T @ jac[:m])
+    return Evaluation(theta, e, float(e @ e) / e.size, jac, basis.shape[1])
 
 
-def _jacobian(spec, A, B, C, D, F, y, u, w, v, e) -> np.ndarray:
-    """∂e/∂θ as an N × p matrix (columns in the parameter order a, b, c, d, f)."""
+def orthonormal_basis(phi: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
+    """Orthonormal columns spanning the numerical column space of ``phi`` (pivoted QR)."""
+    if phi.size == 0:
+        return phi
+    q, r, _ = qr(phi, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(r))
+    rank = int(np.sum(diag > rcond * diag[0])) if diag[0] > 0 else 0
+    return q[:, :rank]
+
+
+def state_responses(spec: PolySpec, C: np.ndarray, F: np.ndarray, n: int) -> np.ndarray:
+    """Free responses of the prediction-error filter, over their transient window.
+
+    Multiplying out, C F e = D A F y − D B u: one difference equation whose
+    zero-input responses are z(q)/(C F) δ for polynomials z of degree < k.  The
+    columns are the impulse response of 1/(C F) delayed by 0 … k−1 samples.
+    """
+    P = polymul(C, F)
+    k = max(P.size, spec.na + spec.nd + spec.nf + 1, spec.nd + spec.nb + spec.nk) - 1
+    if k == 0:
+        return np.zeros((0, 0))
+    m = transient_length(P, n)
+    impulse = np.zeros(m)
+    impulse[0] = 1.0
+    h = filt(np.ones(1), P, impulse)
+    phi = np.zeros((m, k))
+    for i in range(min(k, m)):
+        phi[i:, i] = h[: m - i]
+    return phi
+
+
+def _jacobian(spec, A, B, C, D, F, y, u, w, v, e, s) -> np.ndarray:
+    """∂e/∂θ as an N × p matrix (columns in the parameter order a, b, c, d, f).
+
+    ``e`` includes the initial-state response ``s`` = z/(C F) δ (None when states are
+    not fitted); holding z fixed, ∂s/∂c_i = −q⁻ⁱ s/C (already in the c columns, which
+    use the total e) and ∂s/∂f_i = −q⁻ⁱ s/F.
+    """
     N = y.size
     jac = np.empty((N, spec.n_params))
     col = 0
@@ -100,7 +137,10 @@ def _jacobian(spec, A, B, C, D, F, y, u, w, v, e) -> np.ndarray:
     if spec.nd:
         shifted(filt(np.ones(1), C, v), range(1, spec.nd + 1))
     if spec.nf:
-        shifted(filt(D, CF, w), range(1, spec.nf + 1))
+        df = filt(D, CF, w)
+        if s is not None:
+            df -= filt(np.ones(1), F, s)
+        shifted(df, range(1, spec.nf + 1))
     return jac
 
 
@@ -114,6 +154,7 @@ class Minimum:
     r_factor: np.ndarray
 
 
+@single_threaded_blas
 def minimise(
     spec: PolySpec,
     theta0: np.ndarray,
@@ -132,10 +173,9 @@ def minimise(
     if tolerance is None:
         tolerance = max(1e-3 * spec.n_params / y.size, 1e-12)
     current = evaluate(spec, project(spec, theta0), y, u, fit_states, jacobian=True)
-    lam = 0.0
+    lam, nu = 0.0, 2.0  # Nielsen's damping update; lam = 0 is a plain Gauss-Newton step
     termination = "maximum number of iterations reached"
     iterations = 0
-    r = np.eye(spec.n_params)
     for iterations in range(1, max_iterations + 1):
         q, r = np.linalg.qr(current.jac)
         g = q.T @ current.e
@@ -149,25 +189,38 @@ def minimise(
         accepted = None
         for _ in range(MAX_RETRIES):
             step = _damped_step(r, g, lam, scale)
-            candidate_theta = project(spec, current.theta + step)
-            candidate = evaluate(spec, candidate_theta, y, u, fit_states, jacobian=False)
-            if np.isfinite(candidate.loss) and candidate.loss < current.loss:
+            predicted = (float(g @ g) - float(np.sum((r @ step + g) ** 2))) / current.e.size
+            candidate = evaluate(spec, project(spec, current.theta + step), y, u, fit_states, jacobian=False)
+            actual = current.loss - candidate.loss
+            if np.isfinite(candidate.loss) and actual > 0:
+                rho = actual / predicted if predicted > 0 else 0.0
+                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                lam = 0.0 if lam < 1e-12 else lam
+                nu = 2.0
                 accepted = candidate
                 break
-            lam = max(lam * 10.0, 1e-4)
+            lam = max(lam, 1e-6) * nu
+            nu *= 2.0
         if accepted is None:
-            termination = "no improvement along the search direction"
+            # at a minimum, rounding leaves nothing to gain: converged if little was expected
+            termination = (
+                "no further improvement possible (converged to rounding)"
+                if expected <= NEGLIGIBLE * tolerance * current.loss
+                else "no improvement along the search direction"
+            )
+            iterations -= 1
             break
         relative = (current.loss - accepted.loss) / current.loss
         undamped = lam == 0.0
-        lam = lam / 10.0 if lam > 1e-8 else 0.0
         current = evaluate(spec, accepted.theta, y, u, fit_states, jacobian=True)
         if undamped and relative < tolerance:
             termination = "relative improvement below tolerance"
             break
-    if current.jac is not None:
-        r = np.linalg.qr(current.jac, mode="r")
+    r = np.linalg.qr(current.jac, mode="r")
     return Minimum(current, iterations, termination, r)
+
+
+CONVERGED = ("expected", "relative", "no further")
 
 
 def _damped_step(r: np.ndarray, g: np.ndarray, lam: float, scale: np.ndarray) -> np.ndarray:

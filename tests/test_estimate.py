@@ -1,0 +1,157 @@
+"""Estimators on known true systems: consistency, covariance, validation FIT, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from maglev import estimate as E
+from maglev.data import IOData
+from maglev.validate import fit_percent
+
+from .systems import TRUE, simulate, true_model
+
+STRUCTURE = {"arx": "arx", "armax": "armax", "oe": "oe", "bj": "bj", "lev": "oe"}
+
+
+def fitted(name: str, data: IOData, **kw):
+    return E.estimate(data, STRUCTURE[name], TRUE[name]["orders"], **kw)
+
+
+def param_error(name: str, model) -> float:
+    """Largest absolute parameter error against the truth."""
+    return float(np.max(np.abs(model.parameters - true_model(name).parameters)))
+
+
+@pytest.mark.parametrize("name", list(TRUE))
+def test_converges_to_truth_as_N_grows(name):
+    errors = {}
+    for N in (2_000, 100_000):
+        errs = [param_error(name, fitted(name, simulate(name, N, seed))) for seed in range(3)]
+        errors[N] = float(np.mean(errs))
+    assert errors[100_000] < errors[2_000] / 3, errors
+    # and the large-sample estimate sits within 4 reported standard errors of the truth
+    m = fitted(name, simulate(name, 100_000, 7))
+    z = (m.parameters - true_model(name).parameters) / m.std_errors
+    assert np.all(np.abs(z) < 4.5), dict(zip(m.parameter_names, z.round(2)))
+
+
+@pytest.mark.parametrize("name", ["arx", "armax", "oe", "bj", "lev"])
+def test_monte_carlo_spread_matches_reported_covariance(name):
+    runs = 60
+    estimates, reported = [], []
+    for seed in range(runs):
+        m = fitted(name, simulate(name, 2_000, 100 + seed))
+        estimates.append(m.parameters)
+        reported.append(m.std_errors)
+    empirical = np.std(estimates, axis=0, ddof=1)
+    predicted = np.mean(reported, axis=0)
+    ratio = empirical / predicted
+    # 60 runs give the std to about ±10 % (1 sigma); allow ±35 %
+    assert np.all((ratio > 0.65) & (ratio < 1.35)), dict(zip(m.parameter_names, ratio.round(2)))
+
+
+@pytest.mark.parametrize("name", list(TRUE))
+@pytest.mark.parametrize("N", [2_000, 20_000])
+def test_validation_fit_close_to_true_model(name, N):
+    est = simulate(name, N, seed=1)
+    val = simulate(name, 20_000, seed=2)
+    m = fitted(name, est)
+    truth = true_model(name)
+    fit_model = fit_percent(val.y, m.predict(val, 1))
+    fit_truth = fit_percent(val.y, truth.predict(val, 1))
+    assert fit_model > fit_truth - 0.2, (fit_model, fit_truth)
+
+
+def test_lightly_damped_plant_poles_found_from_binary_input():
+    """The levitator-like plant: all four poles within 1e-3 of the truth, none unstable."""
+    m = fitted("lev", simulate("lev", 20_000, seed=3, binary=True))
+    true_poles = np.sort_complex(true_model("lev").poles())
+    got = np.sort_complex(m.poles())
+    assert np.max(np.abs(got - true_poles)) < 1e-3
+    assert np.all(np.abs(got) < 1)
+
+
+def test_information_criteria_follow_matlab_formulas():
+    m = fitted("armax", simulate("armax", 3_000, seed=4))
+    r = m.report
+    N, d, V = r.n_samples, r.n_params + r.n_initial, r.loss
+    e = m.residuals(simulate("armax", 3_000, seed=4), "estimate" if r.n_initial else "zero")
+    assert V == pytest.approx(np.mean(e**2), rel=1e-6)
+    assert r.fpe == pytest.approx(V * (1 + d / N) / (1 - d / N))
+    assert r.aic == pytest.approx(N * np.log(V) + 2 * d + N * (np.log(2 * np.pi) + 1))
+    assert r.aicc == pytest.approx(r.aic + 2 * d * (d + 1) / (N - d - 1))
+    assert r.bic == pytest.approx(N * np.log(V) + d * np.log(N) + N * (np.log(2 * np.pi) + 1))
+    assert r.naic == pytest.approx(np.log(V) + 2 * d / N)
+    assert m.noise_variance == pytest.approx(N * V / (N - d))
+
+
+def test_arx_matches_explicit_least_squares_with_matlab_rows():
+    """Rows t = na+1..N, pre-sample inputs zero, solved by the normal equations in a loop."""
+    data = simulate("armax", 500, seed=5)
+    na, nb, nk = 3, 2, 3
+    rows, targets = [], []
+    for t in range(na, data.N):
+        phi = [-data.y[t - i] for i in range(1, na + 1)]
+        phi += [data.u[t - nk - j] if t - nk - j >= 0 else 0.0 for j in range(nb)]
+        rows.append(phi)
+        targets.append(data.y[t])
+    P, Y = np.array(rows), np.array(targets)
+    theta = np.linalg.solve(P.T @ P, P.T @ Y)
+    m = E.arx(data, na, nb, nk)
+    np.testing.assert_allclose(m.parameters, theta, rtol=1e-9, atol=1e-12)
+    assert m.report.n_samples == data.N - na
+    assert m.B[:nk].tolist() == [0.0] * nk
+
+
+@pytest.mark.parametrize("mode", ["zero", "estimate", "backcast", "auto"])
+def test_initial_condition_modes_all_recover_the_truth(mode):
+    data = simulate("bj", 5_000, seed=6)
+    m = fitted("bj", data, initial_condition=mode)
+    assert param_error("bj", m) < 0.1
+    assert m.report.initial_condition.startswith(mode)
+    if mode == "estimate":
+        assert m.report.n_initial > 0
+    if mode in ("zero", "backcast"):
+        assert m.report.n_initial == 0
+
+
+def test_estimated_initial_state_beats_zero_on_a_record_starting_off_rest():
+    """A record cut from the middle of an experiment has a nonzero initial state."""
+    full = simulate("oe", 6_000, seed=8)
+    data = full.segment(1_000)
+    zero = fitted("oe", data, initial_condition="zero")
+    est = fitted("oe", data, initial_condition="estimate")
+    assert est.report.loss < zero.report.loss
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda d: E.arx(d, -1, 2, 1), "na must be >= 0"),
+        (lambda d: E.arx(d, 2, 2, -1), "nk must be >= 0"),
+        (lambda d: E.oe(d, 0, 2, 1), "nb must be >= 1"),
+        (lambda d: E.arx(d, 2.5, 2, 1), "must be an integer"),
+        (lambda d: E.armax(d, 40, 40, 40, 1), "orders too large for the data"),
+        (lambda d: E.bj(d, 2, 1, 1, 2, 1, initial_condition="guess"), "initial_condition must be one of"),
+        (lambda d: E.estimate(d, "bj", [2, 2, 1]), "bj takes orders [nb nc nd nf nk]"),
+        (lambda d: E.estimate(d, "narx", [2, 2, 1]), "unknown structure"),
+    ],
+)
+def test_bad_orders_give_clear_errors(call, message):
+    data = simulate("arx", 200, seed=0)
+    with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        call(data)
+
+
+def test_constant_input_is_refused_as_unexciting():
+    data = IOData(np.full(1000, 3.0), np.random.default_rng(0).standard_normal(1000), 1e-3, name="flat")
+    with pytest.raises(ValueError, match="flat: input u is constant"):
+        E.armax(data, 2, 2, 2, 1)
+
+
+def test_input_not_persistently_exciting_is_refused():
+    u = np.tile([1.0, -1.0], 1000)  # a pure alternating signal excites order 1 only... and 2 at most
+    y = np.convolve(u, [0, 1, 0.5])[: u.size] + 0.01 * np.random.default_rng(0).standard_normal(u.size)
+    with pytest.raises(ValueError, match="not persistently exciting of order 4"):
+        E.oe(IOData(u, y, 1.0, name="alt"), 2, 2, 1)
