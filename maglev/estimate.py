@@ -6,7 +6,7 @@
   ``"zero"`` uses every row with all pre-sample data zero; ``"estimate"`` (and
   ``"backcast"``) drops every row that needs pre-sample data.
 * ``armax``, ``oe``, ``bj`` and ``pem`` minimise the one-step prediction error with
-  Levenberg–Marquardt (:mod:`maglev.pem`) from several sound starting points
+  Levenberg–Marquardt (:mod:`maglev.prediction_error`) from several sound starting points
   (pseudo-linear regression for ARMAX, Steiglitz–McBride for OE, OE plus a
   Hannan–Rissanen noise model for BJ, plain ARX) and keep the best minimum, so that
   lightly damped plants do not end in a poor local minimum.
@@ -27,13 +27,14 @@ import numpy as np
 from .data import IOData
 from .initial_state import INITIAL_CONDITIONS
 from .models import FitReport, PolyModel
-from .pem import CONVERGED, evaluate, minimise, project
+from .prediction_error import CONVERGED, evaluate, minimise, project
 from .polynomials import filt, stabilize
 from .structure import PolySpec
 from .threads import single_threaded_blas
 
 AUTO_STATE_GAIN = 1e-3
 START_RATIO = 10.0
+ABANDON_MARGIN = 0.01  # a secondary start must be within 1 % of the best minimum by then
 
 
 # ---------------------------------------------------------------------------- public API
@@ -44,8 +45,10 @@ def arx(data: IOData, na: int, nb: int, nk: int, initial_condition: str = "auto"
     y, u = _checked(data, spec, initial_condition)
     first = {"auto": spec.na, "zero": 0}.get(initial_condition, spec.max_lag)
     phi, target = _regression(y, u, spec, first)
-    q, r = np.linalg.qr(phi)
-    theta = _solve_triangular(r, q.T @ target, data)
+    p = phi.shape[1]
+    full = np.linalg.qr(np.column_stack([phi, target]), mode="r")  # R and Qᵀy without forming Q
+    r = full[:p, :p]
+    theta = _solve_triangular(r, full[:p, p], data)
     e = target - phi @ theta
     A, B, *_ = spec.polys(theta)
     report = FitReport.from_residuals(
@@ -271,13 +274,15 @@ def _pem(
     data: IOData,
     spec: PolySpec,
     initial_condition: str,
-    max_iterations: int = 100,
+    max_iterations: int = 200,
     tolerance: float | None = None,
 ) -> PolyModel:
     y, u = _checked(data, spec, initial_condition)
     starts = _starts(spec, y, u)
     if spec.structure == "bj" or (spec.structure == "pem" and spec.na == 0 and spec.nf > 0):
         starts.append(_bj_from_oe(spec, y, u, max_iterations, tolerance))
+    if spec.na and (spec.nf or spec.nd):
+        starts.append(_general_from_bj(spec, y, u, max_iterations, tolerance))
     fit_states = _wants_states(spec, starts, y, u, initial_condition)
     best = _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance)
     ev = best.evaluation
@@ -295,21 +300,25 @@ def _pem(
 
 
 def _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance):
-    """Minimise from the promising starts (loss within START_RATIO of the best start).
+    """Minimise from every start, best starting loss first; keep the lowest minimum.
 
-    Starts far worse than the best are only tried when the promising ones end without
-    converging, which keeps the common case to one or two short runs.
+    Starts more than START_RATIO worse than the best start are skipped once a run has
+    converged.  Later runs are abandoned after a few iterations if they are still
+    above the best minimum, so a start heading for a better basin is followed to the
+    end while one heading for the same or a worse minimum costs little.
     """
     losses = [evaluate(spec, project(spec, t), y, u, fit_states, False).loss for t in starts]
     order = np.argsort(losses)
     best = None
     for rank, i in enumerate(order):
-        promising = losses[i] <= START_RATIO * losses[order[0]]
         converged = best is not None and best.termination.startswith(CONVERGED)
-        if rank and not promising and converged:
+        if rank and converged and losses[i] > START_RATIO * losses[order[0]]:
             break
-        result = minimise(spec, starts[i], y, u, fit_states, max_iterations, tolerance)
-        if best is None or result.evaluation.loss < best.evaluation.loss:
+        result = minimise(
+            spec, starts[i], y, u, fit_states, max_iterations, tolerance,
+            abandon_above=None if best is None else best.evaluation.loss * (1 + ABANDON_MARGIN),
+        )
+        if best is None or result.evaluation.loss < best.evaluation.loss * (1 - 1e-9):
             best = result
     return best
 
@@ -317,13 +326,26 @@ def _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance):
 def _bj_from_oe(spec: PolySpec, y, u, max_iterations, tolerance) -> np.ndarray:
     """BJ start: minimise the OE part first, then model its residual as ARMA."""
     oe_spec = PolySpec("oe", nb=spec.nb, nf=spec.nf, nk=spec.nk)
-    oe_best = min(
-        (minimise(oe_spec, t, y, u, False, max_iterations, tolerance) for t in _starts(oe_spec, y, u)),
-        key=lambda m: m.evaluation.loss,
-    )
+    oe_best = _best_minimum(oe_spec, _starts(oe_spec, y, u), y, u, False, max_iterations, tolerance)
     _, B, _, _, F = oe_spec.polys(oe_best.evaluation.theta)
     C, D = _hannan_rissanen(oe_best.evaluation.e, spec.nc, spec.nd)
     return spec.theta(None, B, C, D, F)
+
+
+def _general_from_bj(spec: PolySpec, y, u, max_iterations, tolerance) -> np.ndarray:
+    """Start for A y = B/F u + C/D e with A, F or D free: fit the BJ model with
+    F' = A F and D' = A D, then give A the na poles that F' and D' share most closely."""
+    wide = PolySpec("pem", nb=spec.nb, nc=spec.nc, nd=spec.nd + spec.na, nf=spec.nf + spec.na, nk=spec.nk)
+    fitted = _best_minimum(wide, _starts(wide, y, u), y, u, False, max_iterations, tolerance)
+    _, B, C, Dw, Fw = wide.polys(fitted.evaluation.theta)
+    rf, rd = list(np.roots(Fw)), list(np.roots(Dw))
+    common = []
+    for _ in range(spec.na):
+        i, j = min(((i, j) for i in range(len(rf)) for j in range(len(rd))),
+                   key=lambda ij: abs(rf[ij[0]] - rd[ij[1]]))
+        common.append((rf.pop(i) + rd.pop(j)) / 2)
+    A, F, D = (np.real(np.poly(r)) if len(r) else np.ones(1) for r in (common, rf, rd))
+    return spec.theta(A, B, C, D, F)
 
 
 def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condition: str) -> bool:

@@ -18,7 +18,7 @@ import numpy as np
 
 from .data import IOData
 from .initial_state import INITIAL_CONDITIONS, fit_initial_state
-from .polynomials import filt, polymul
+from .polynomials import filt, is_stable, polymul
 
 STRUCTURES = ("arx", "armax", "oe", "bj", "pem")
 
@@ -287,8 +287,25 @@ class PolyModel:
         data by least squares (as MATLAB's ``compare`` and ``predict`` do by default).
         """
         (nu, du), (ny, dy) = self.predictor(horizon)
+        self._check_predictor_stable(horizon, initial_condition, du, dy)
         yhat = filt(nu, du, data.u) + filt(ny, dy, data.y)
         return yhat + self._initial_correction(data.y - yhat, [(nu, du), (ny, dy)], initial_condition)
+
+    def _check_predictor_stable(self, horizon, initial_condition: str, *dens: np.ndarray) -> None:
+        """Refuse predictions that would diverge: an unstable C·F (k-step), or an unstable
+        simulation whose initial state is to be fitted."""
+        simulation = _check_horizon(horizon) == math.inf
+        if simulation and initial_condition == "zero":
+            return  # simulating an unstable G from rest is well defined (it diverges)
+        for den in dens:
+            if den.size > 1 and not is_stable(den):
+                radius = float(np.max(np.abs(np.roots(den))))
+                what = "A(q)·F(q)" if simulation else "C(q)·F(q)"
+                raise ValueError(
+                    f"{self.name or self.label}: {what} has a root outside the unit circle "
+                    f"(|root| = {radius:.4g}), so its {'simulation' if simulation else f'{horizon}-step predictor'} "
+                    "is unstable; reflect the roots inside (maglev.polynomials.stabilize) or re-estimate"
+                )
 
     def residuals(self, data: IOData, initial_condition: str = "zero") -> np.ndarray:
         """One-step prediction errors e = D/C (A y - B/F u)."""

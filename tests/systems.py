@@ -24,6 +24,10 @@ TRUE = {
                orders=(2, 2, 2)),
     "bj": dict(A=ONE, B=[0, 1.0, 0.5], C=[1, 0.5], D=[1, -0.8], F=[1, -1.5, 0.7], nk=1, sigma=0.5,
                orders=(2, 1, 1, 2, 1)),
+    # general structure: A shared by G = B/(AF) and H = C/(AD); roots well apart so that
+    # A and F cannot trade places (with A, D, F roots 0.5, 0.6, 0.7 they nearly can at N = 2000)
+    "pem": dict(A=[1, -0.3], B=[0, 1.0, 0.4], C=[1, 0.3], D=[1, 0.6], F=[1, -0.85], nk=1, sigma=0.3,
+                orders=(1, 2, 1, 1, 1, 1)),
     # the levitator-like plant, as an OE model with a two-sample dead time
     "lev": dict(A=ONE, B=[0, 0, 0.01, 0.005], C=ONE, D=ONE, F=levitator_like_F(), nk=2, sigma=0.01,
                 orders=(2, 4, 2)),

@@ -7,7 +7,7 @@ import pytest
 
 from maglev import estimate as E
 from maglev.data import IOData
-from maglev.pem import minimise
+from maglev.prediction_error import minimise
 from maglev.structure import PolySpec
 from maglev.validate import compare
 

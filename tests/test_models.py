@@ -100,3 +100,14 @@ def test_bad_polynomials_and_horizons_are_refused():
     m = true_model("arx")
     with pytest.raises(ValueError, match="horizon must be a positive integer or inf"):
         m.predict(simulate("arx", 100, 0), 0)
+
+
+def test_unstable_predictor_is_refused_not_nan():
+    m = PolyModel(A=[1, -0.5], B=[0, 1.0], C=[1, 1.5], D=[1], F=[1], nk=1, Ts=1.0, name="bad")
+    data = simulate("arx", 500, 0)
+    with pytest.raises(ValueError, match=r"bad: C\(q\)·F\(q\) has a root outside the unit circle \(\|root\| = 1.5\)"):
+        m.predict(data, 1)
+    unstable_g = PolyModel(A=[1, -1.2], B=[0, 1.0], C=[1], D=[1], F=[1], nk=1, Ts=1.0)
+    assert np.all(np.isfinite(unstable_g.predict(data, math.inf, "zero")))  # diverging but defined
+    with pytest.raises(ValueError, match="simulation is unstable"):
+        unstable_g.predict(data, math.inf, "estimate")

@@ -30,6 +30,7 @@ from .threads import single_threaded_blas
 
 MAX_RETRIES = 10  # damping grows ×2, ×4, ×8 … per failed try: past 1e5 × diag(JᵀJ) after ten
 NEGLIGIBLE = 1e3  # expected improvements below 1e3 × tolerance count as converged at a stall
+PATIENCE = 8  # iterations a secondary start gets before it must beat the best minimum
 
 
 @dataclass
@@ -163,12 +164,15 @@ def minimise(
     fit_states: bool = False,
     max_iterations: int = 100,
     tolerance: float | None = None,
+    abandon_above: float | None = None,
 ) -> Minimum:
     """Levenberg–Marquardt from ``theta0`` until the expected relative improvement < ``tolerance``.
 
     The default tolerance is ``1e-3 · d / N``: the loss of a fitted model fluctuates
     by about d/N relative between data sets, so improvements a thousand times
-    smaller than that change nothing a user can see.
+    smaller than that change nothing a user can see.  With ``abandon_above`` the run
+    stops after ``PATIENCE`` iterations if its loss is still above that value (used
+    for secondary starting points once another start has converged).
     """
     if tolerance is None:
         tolerance = max(1e-3 * spec.n_params / y.size, 1e-12)
@@ -177,12 +181,15 @@ def minimise(
     termination = "maximum number of iterations reached"
     iterations = 0
     for iterations in range(1, max_iterations + 1):
-        q, r = np.linalg.qr(current.jac)
-        g = q.T @ current.e
+        r, g = _triangular_factor(current.jac, current.e)
         # Gauss-Newton predicts a loss reduction of |Q'e|^2 / N
         expected = float(g @ g) / current.e.size
         if current.loss == 0 or expected <= tolerance * current.loss:
             termination = "expected improvement below tolerance"
+            iterations -= 1
+            break
+        if abandon_above is not None and iterations > PATIENCE and current.loss > abandon_above:
+            termination = "abandoned: stays above the best minimum from another start"
             iterations -= 1
             break
         scale = np.sqrt(np.sum(r * r, axis=0)) + 1e-300
@@ -216,8 +223,18 @@ def minimise(
         if undamped and relative < tolerance:
             termination = "relative improvement below tolerance"
             break
-    r = np.linalg.qr(current.jac, mode="r")
+    else:
+        r, _ = _triangular_factor(current.jac, current.e)
+    if termination.startswith("relative"):
+        r, _ = _triangular_factor(current.jac, current.e)
     return Minimum(current, iterations, termination, r)
+
+
+def _triangular_factor(jac: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R and Qᵀe of J = QR from one R-only QR of [J e] (Q is never formed)."""
+    p = jac.shape[1]
+    full = np.linalg.qr(np.column_stack([jac, e]), mode="r")
+    return full[:p, :p], full[:p, p]
 
 
 CONVERGED = ("expected", "relative", "no further")
