@@ -9,8 +9,11 @@ predictor is fitted to the data by least squares unless told otherwise.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import toeplitz
+from scipy.stats import chi2
 
 from .data import IOData
 from .models import PolyModel
@@ -43,3 +46,148 @@ def compare(
         )
     yhat = model.predict(data, horizon, initial_condition)
     return fit_percent(data.y, yhat), yhat
+
+
+# ---------------------------------------------------------------------------- residual analysis
+CONFIDENCE_Z = 2.58  # two-sided 99 % quantile of N(0, 1), as in MATLAB's resid
+TEST_LEVEL = 0.01  # significance level of the whiteness and independence tests
+
+
+@dataclass(frozen=True)
+class ResidResult:
+    """Residual analysis of one model on one data set (MATLAB's ``resid``).
+
+    ``auto_lags`` = 0..M and ``auto_corr`` = r_e(τ) with r_e(0) = 1.
+    ``cross_lags`` = −M..M and ``cross_corr`` = r_eu(τ) ≈ E e(t) u(t−τ) / (σ_e σ_u):
+    positive lags pair the residual with *past* inputs (input leads residual; a peak
+    there means unmodelled dynamics or a wrong delay), negative lags with *future*
+    inputs (a peak there points to output feedback in the data).
+    ``auto_band``/``cross_band`` are the half-widths of the 99 % bands.
+    """
+
+    e: np.ndarray
+    auto_lags: np.ndarray
+    auto_corr: np.ndarray
+    auto_band: float
+    cross_lags: np.ndarray
+    cross_corr: np.ndarray
+    cross_band: float
+    whiteness_stat: float
+    whiteness_dof: int
+    whiteness_pvalue: float
+    independence_stat: float
+    independence_dof: int
+    independence_pvalue: float
+    auto_outside: float
+    cross_outside: float
+
+    @property
+    def white(self) -> bool:
+        """The whiteness test passes at the 1 % level."""
+        return self.whiteness_pvalue >= TEST_LEVEL
+
+    @property
+    def independent(self) -> bool:
+        """The residual–input independence test passes at the 1 % level."""
+        return self.independence_pvalue >= TEST_LEVEL
+
+    def to_dict(self) -> dict:
+        """Scalar summary (for logging), without the sequences."""
+        return {
+            "whiteness_stat": self.whiteness_stat,
+            "whiteness_pvalue": self.whiteness_pvalue,
+            "white": self.white,
+            "independence_stat": self.independence_stat,
+            "independence_pvalue": self.independence_pvalue,
+            "independent": self.independent,
+            "auto_outside": self.auto_outside,
+            "cross_outside": self.cross_outside,
+            "auto_band": self.auto_band,
+            "cross_band": self.cross_band,
+        }
+
+
+def resid(
+    data: IOData,
+    model: PolyModel,
+    lags: int = 25,
+    initial_condition: str = "estimate",
+) -> ResidResult:
+    """Correlation tests of the one-step prediction errors of ``model`` on ``data``.
+
+    Both signals have their means removed; covariances are the biased estimates
+    R_xz(τ) = (1/N) Σ_t x(t) z(t−τ), normalised by √(R_x(0) R_z(0)).
+
+    * Autocorrelation band (MATLAB): ±2.58/√N.
+    * Cross-correlation band (MATLAB's resid): ±2.58·√(P/N) with
+      P = Σ_{k=−M..M} r_e(k) r_u(k), the asymptotic variance of √N r_eu(τ) when e
+      and u are independent but possibly coloured (Ljung 1999, §16.6).  A truncated
+      P that comes out non-positive is replaced by 1 (its value for a white e).
+    * Whiteness (Ljung §16.6): N Σ_{τ=1..M} r_e(τ)² ~ χ²(M) under white e.
+    * Independence (Ljung's version with the input covariance, §16.6, over
+      τ = −M..M): with r = [r_eu(−M) … r_eu(M)] and T the (2M+1)×(2M+1) Toeplitz
+      matrix of the input autocorrelation r_u(0..2M), N rᵀ T⁻¹ r ~ χ²(2M+1) for a
+      white e independent of u.  Unlike N Σ r_eu² it stays valid for a coloured
+      input (the r_eu(τ) of neighbouring lags are then correlated).  A (numerically)
+      singular T, e.g. for a sinusoidal input, uses the pseudo-inverse and its rank
+      as the degrees of freedom.
+    * ``auto_outside`` is the fraction of τ = 1..M with |r_e(τ)| above its band,
+      ``cross_outside`` that of τ = −M..M for r_eu.
+    """
+    if not isinstance(data, IOData):
+        raise TypeError(f"resid: data must be an IOData, got {type(data).__name__}")
+    if not isinstance(model, PolyModel):
+        raise TypeError(f"resid: model must be a PolyModel, got {type(model).__name__}")
+    if not math.isclose(data.Ts, model.Ts, rel_tol=1e-9):
+        raise ValueError(f"resid: data has Ts = {data.Ts:g} s but the model has Ts = {model.Ts:g} s")
+    N = data.N
+    if isinstance(lags, (bool, np.bool_)) or not isinstance(lags, (int, np.integer)) or not 1 <= lags < N // 2:
+        raise ValueError(f"resid: lags must be an integer in [1, {N // 2 - 1}] for N = {N}, got {lags!r}")
+    M = int(lags)
+    e = model.residuals(data, initial_condition)
+    ec = e - e.mean()
+    uc = data.u - data.u.mean()
+    if not np.any(ec):
+        raise ValueError("resid: the residuals are identically zero; there is nothing to test")
+    if not np.any(uc):
+        raise ValueError("resid: input u is constant; the residual-input correlation is undefined")
+
+    r_e = _correlation(ec, ec, range(M + 1))
+    r_u = _correlation(uc, uc, range(2 * M + 1))
+    cross_lags = np.arange(-M, M + 1)
+    r_eu = _correlation(ec, uc, cross_lags)
+
+    auto_band = CONFIDENCE_Z / math.sqrt(N)
+    P = r_e[0] * r_u[0] + 2.0 * float(r_e[1:] @ r_u[1 : M + 1])
+    cross_band = CONFIDENCE_Z * math.sqrt((P if P > 0 else 1.0) / N)
+
+    whiteness = N * float(r_e[1:] @ r_e[1:])
+    weights, _, cross_dof, _ = np.linalg.lstsq(toeplitz(r_u), r_eu, rcond=1e-10)
+    independence = N * float(r_eu @ weights)
+    return ResidResult(
+        e=e,
+        auto_lags=np.arange(M + 1),
+        auto_corr=r_e,
+        auto_band=auto_band,
+        cross_lags=cross_lags,
+        cross_corr=r_eu,
+        cross_band=cross_band,
+        whiteness_stat=whiteness,
+        whiteness_dof=M,
+        whiteness_pvalue=float(chi2.sf(whiteness, M)),
+        independence_stat=independence,
+        independence_dof=int(cross_dof),
+        independence_pvalue=float(chi2.sf(independence, cross_dof)),
+        auto_outside=float(np.mean(np.abs(r_e[1:]) > auto_band)),
+        cross_outside=float(np.mean(np.abs(r_eu) > cross_band)),
+    )
+
+
+def _correlation(x: np.ndarray, z: np.ndarray, lags) -> np.ndarray:
+    """r_xz(τ) = Σ_t x(t) z(t−τ) / √(Σ x² Σ z²) for each τ in ``lags`` (sums over valid t)."""
+    N = x.size
+    scale = math.sqrt(float(x @ x) * float(z @ z))
+    out = np.empty(len(lags))
+    for i, tau in enumerate(lags):
+        out[i] = (x[tau:] @ z[: N - tau]) if tau >= 0 else (x[: N + tau] @ z[-tau:])
+    return out / scale
