@@ -79,23 +79,31 @@ def is_stable(p: np.ndarray, margin: float = 0.0) -> bool:
     return bool(np.all(np.abs(np.roots(p)) < 1.0 - margin))
 
 
-def stabilize(p: np.ndarray) -> np.ndarray:
-    """Reflect roots outside the unit circle to their mirror images 1/conj(r) (monic kept).
+MAX_RADIUS = 1.0 - 1e-5  # roots kept this far inside the unit circle (rounding-safe)
 
-    This keeps the magnitude response shape (up to a constant) while making the
-    polynomial minimum-phase, as MATLAB does for C, D and F during estimation.
+
+def stabilize(p: np.ndarray) -> np.ndarray:
+    """Reflect roots outside the unit circle to 1/conj(r) and pull any left on or near
+    the circle in to ``MAX_RADIUS`` (monic kept).
+
+    Reflection keeps the magnitude response's shape (up to a constant) while making
+    the polynomial minimum-phase, as MATLAB does for C, D and F during estimation.
+    The margin matters for noise models of band-limited (e.g. decimated) data, whose
+    best C has a zero at z = -1: a root left at 1 - 1e-6 comes back from ``np.roots``
+    of the rounded coefficients at or beyond 1.
     """
     p = np.asarray(p, dtype=float)
     if len(p) <= 1:
         return p.copy()
     roots = np.roots(p)
-    outside = np.abs(roots) > 1.0
-    if not outside.any():
+    radius = np.abs(roots)
+    if np.all(radius <= MAX_RADIUS):
         return p.copy()
+    outside = radius > 1.0
     roots[outside] = 1.0 / np.conj(roots[outside])
-    # keep roots marginally inside so predictors stay strictly stable
-    on_circle = np.abs(np.abs(roots) - 1.0) < 1e-8
-    roots[on_circle] *= 1.0 - 1e-6
+    radius = np.abs(roots)
+    near = radius > MAX_RADIUS
+    roots[near] *= MAX_RADIUS / radius[near]
     q = np.real(np.poly(roots))
     return q * (p[0] / q[0])
 

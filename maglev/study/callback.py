@@ -1,0 +1,136 @@
+"""Hydra callback owning a sweep's parent MLflow run.
+
+``on_multirun_start`` runs once in the launching process before any job:
+it creates the store and experiment (so parallel workers never race to create the
+SQLite database), reaps runs left RUNNING by dead processes, finds or creates the
+parent run (``kind=sweep``; a relaunch of the same sweep reuses its parent), writes
+its id to ``<sweep dir>/parent_run_id`` (read by every job, also on a cluster) and
+``$MAGLEV_PARENT_RUN_ID``, and logs the lab-level steps once per sweep.
+``on_multirun_end`` finishes the parent with a summary.  If the sweep dies (a job
+config error, Ctrl-C) an ``atexit`` hook marks the parent KILLED, or deletes it when
+no job ever started a run.
+"""
+
+from __future__ import annotations
+
+import atexit
+import hashlib
+import json
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+from hydra.core.hydra_config import HydraConfig
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig, OmegaConf
+
+from maglev.study import tracking
+
+log = logging.getLogger("maglev.study")
+
+
+def task_config(config: DictConfig) -> dict:
+    """The resolved task part of a full Hydra config (everything but ``hydra``)."""
+    from maglev.study.job import plain_config
+
+    task = OmegaConf.masked_copy(config, [k for k in config if k != "hydra"])
+    return plain_config(task)
+
+
+def sweep_id(config: DictConfig, task: dict) -> str:
+    """Identity of a sweep: its name, sweeper params and command-line overrides (not tracking/hydra)."""
+    raw = config.hydra.sweeper.get("params")
+    params = OmegaConf.to_container(raw, resolve=False) if raw is not None else {}
+    overrides = sorted(o for o in config.hydra.overrides.task
+                       if not o.lstrip("+~").startswith(("tracking", "hydra")))
+    text = json.dumps({"name": task["study"]["name"], "params": params, "overrides": overrides},
+                      sort_keys=True, default=str)
+    return hashlib.sha1(text.encode()).hexdigest()
+
+
+class SweepCallback(Callback):
+    def __init__(self) -> None:
+        self.client = None
+        self.parent: str | None = None
+        self.fresh = False
+
+    # ------------------------------------------------------------------ start
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
+        task = task_config(config)
+        client, exp_id = tracking.connect(task["tracking"])
+        self.client, self.exp_id = client, exp_id
+        if task["tracking"]["reap"]:
+            from maglev.study.reap import reap
+
+            killed = reap(client, [exp_id])
+            if killed:
+                log.warning("marked %d stale RUNNING run(s) KILLED", len(killed))
+        sid = sweep_id(config, task)
+        sweep_dir = Path(config.hydra.sweep.dir).resolve()
+        name = task["study"]["name"]
+        found = client.search_runs([exp_id], filter_string=f"tags.sweep_id = '{sid}' and tags.kind = 'sweep'",
+                                   order_by=["attributes.start_time DESC"], max_results=1)
+        tags = {"kind": "sweep", "sweep": name, "sweep_id": sid, "sweep_dir": str(sweep_dir),
+                "hydra.overrides": " ".join(config.hydra.overrides.task)[:5000],
+                "launcher": str(config.hydra.launcher.get("_target_", "")), **tracking.process_tags()}
+        if found:
+            self.parent, self.fresh = found[0].info.run_id, False
+            client.update_run(self.parent, status="RUNNING")
+            tracking.log_batch(client, self.parent, tags={**tags, "resumed": "true"})
+        else:
+            self.parent = client.create_run(exp_id, run_name=name, tags=tags).info.run_id
+            self.fresh = True
+        sweep_dir.mkdir(parents=True, exist_ok=True)
+        (sweep_dir / tracking.PARENT_FILE).write_text(self.parent)
+        os.environ[tracking.PARENT_ENV] = self.parent
+        atexit.register(self._abort)
+        log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
+                 "new" if self.fresh else "resumed", task["tracking"]["uri"])
+        if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
+            self._log_lab(task)
+
+    def _log_lab(self, task: dict) -> None:
+        from maglev.study.lab import lab_steps
+
+        try:
+            metrics, figures, summary = lab_steps(task)
+        except Exception as exc:  # the lab steps are informative; the sweep goes on
+            log.warning("lab steps failed: %s: %s", type(exc).__name__, exc)
+            tracking.log_batch(self.client, self.parent, tags={"lab_error": f"{type(exc).__name__}: {exc}"})
+            return
+        files = {f"lab/{k}": fig for k, fig in figures.items()}
+        files["lab/lab.json"] = summary
+        tracking.log_files(self.client, self.parent, files)
+        tracking.log_batch(self.client, self.parent, metrics=metrics, tags={"lab_logged": "true"})
+
+    # ------------------------------------------------------------------ end
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        if self.parent is None:
+            return
+        atexit.unregister(self._abort)
+        kids = tracking.children(self.client, self.exp_id, self.parent)
+        counts: dict[str, int] = {}
+        for r in kids:
+            counts[r.info.status] = counts.get(r.info.status, 0) + 1
+        tracking.log_batch(self.client, self.parent,
+                           metrics={f"runs_{s.lower()}": n for s, n in counts.items()})
+        self.client.set_terminated(self.parent, "FINISHED")
+        os.environ.pop(tracking.PARENT_ENV, None)
+        summary = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "no runs"
+        log.info("sweep done: %s under parent run %s", summary, self.parent)
+        if counts.get("FAILED"):
+            log.warning("%d run(s) FAILED; their error.txt artifacts say why", counts["FAILED"])
+
+    def _abort(self) -> None:
+        """atexit: the sweep did not reach on_multirun_end."""
+        if self.parent is None:
+            return
+        try:
+            if self.fresh and not tracking.children(self.client, self.exp_id, self.parent):
+                self.client.delete_run(self.parent)
+            else:
+                self.client.set_terminated(self.parent, "KILLED")
+        except Exception:  # noqa: BLE001 — best effort at interpreter exit
+            pass

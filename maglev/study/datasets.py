@@ -1,0 +1,90 @@
+"""Load a study dataset by its (resolved, plain-dict) config and preprocess it.
+
+No Hydra and no MLflow here: ``load`` takes the ``dataset`` section of the resolved
+config as a plain dict, so ``maglev.reproduce`` and notebooks can call it directly.
+Simulated experiments come from :mod:`maglev.labdata`; files from ``data_dir``.
+Preprocessing order: trim → detrend → decimate → split.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+from maglev.data import IOData
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A dataset ready for identification: the whole preprocessed record and its two parts."""
+
+    name: str
+    raw: IOData  # as loaded (simulated or read)
+    data: IOData  # trimmed, detrended, decimated
+    est: IOData
+    val: IOData
+    u0: float  # mean input of the trimmed record: the working point (A)
+
+    @property
+    def val_name(self) -> str:
+        return self.val.name or f"{self.name}[val]"
+
+    def info(self) -> dict:
+        return {"raw": self.raw.to_dict(), "data": self.data.to_dict(), "est": self.est.to_dict(),
+                "val": self.val.to_dict(), "u0": self.u0}
+
+
+def data_path(ds: dict, data_dir: str) -> Path:
+    """Where a file dataset lives; a clear error says how to point at the data when it is missing."""
+    path = Path(ds["file"])
+    if not path.is_absolute():
+        path = Path(data_dir) / path
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"dataset {ds['name']!r}: {path} not found. Real records are looked up under data_dir="
+            f"{data_dir!r}; set $MAGLEV_REFDATA or pass data_dir=/path/to/refdata"
+        )
+    return path
+
+
+def load_raw(ds: dict, data_dir: str) -> IOData:
+    """The record of a dataset config (``source`` ``sim`` or ``file``), before preprocessing."""
+    if ds["source"] == "sim":
+        return _simulate(ds["input_class"], float(ds["low"]), float(ds["high"]),
+                         None if ds.get("alpha") is None else float(ds["alpha"]),
+                         float(ds["duration_s"]), int(ds["seed"]), float(ds["Ts"]), ds["name"])
+    if ds["source"] == "file":
+        path = data_path(ds, data_dir)
+        reader = IOData.from_csv if path.suffix.lower() == ".csv" else IOData.from_mat
+        return reader(path, u=ds["u"], y=ds["y"], Ts=ds.get("Ts"), name=ds["name"])
+    raise ValueError(f"dataset {ds.get('name')!r}: source must be 'sim' or 'file', got {ds['source']!r}")
+
+
+@functools.lru_cache(maxsize=16)
+def _simulate(kind, low, high, alpha, duration_s, seed, Ts, name) -> IOData:
+    from dataclasses import replace
+
+    from maglev.labdata import ExperimentSpec, experiment
+
+    spec = ExperimentSpec(kind=kind, low=low, high=high, alpha=alpha if kind == "binary" else None,
+                          duration_s=duration_s, seed=seed, Ts=Ts)
+    return replace(experiment(spec), name=name)
+
+
+def prepare(raw: IOData, pp: dict, name: str) -> Prepared:
+    """Apply the dataset's preprocessing and split into estimation and validation data."""
+    data = raw.trim(int(pp["trim"])) if int(pp["trim"]) > 0 else raw
+    u0 = float(data.u.mean())
+    if pp["detrend"]:
+        data = data.detrend()
+    k = int(pp["decimate"])
+    if k > 1:
+        data = data.decimate(k)
+    est, val = data.split(float(pp["split"]))
+    return Prepared(name=name, raw=raw, data=data, est=est, val=val, u0=u0)
+
+
+def load(ds: dict, data_dir: str) -> Prepared:
+    """Load and preprocess the dataset described by the ``dataset`` config section."""
+    return prepare(load_raw(ds, data_dir), ds["preprocess"], ds["name"])

@@ -1,0 +1,164 @@
+"""One identification run of the study: estimate, validate, compare with the truth, draw.
+
+No Hydra and no MLflow here.  :func:`identify` takes the resolved config as a plain
+dict (sections ``dataset``, ``structure``, ``study``, ``data_dir``) and returns the
+model, the scalar metrics, the residual analysis as JSON and the figures; the
+tracking layer logs them and ``maglev.reproduce`` recomputes them.  Everything but
+``fit_seconds`` is a deterministic function of the config.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from maglev.estimate import estimate
+from maglev.models import PolyModel
+from maglev.study.datasets import Prepared, load
+from maglev.study.schema import ORDER_KEYS
+from maglev.validate import ResidResult, compare, resid
+
+TIMING_METRICS = ("fit_seconds",)  # not reproducible; every other metric is
+
+
+@dataclass
+class RunOutput:
+    model: PolyModel
+    metrics: dict[str, float]
+    resid: dict
+    prepared: Prepared
+    figures: dict = field(default_factory=dict)  # artifact file name -> matplotlib Figure
+
+
+def orders_of(structure: dict) -> list[int]:
+    """MATLAB order vector of a structure config section, e.g. ``[na nb nk]`` for ARX."""
+    return [int(structure[k]) for k in ORDER_KEYS[structure["name"]]]
+
+
+def orders_string(structure: dict) -> str:
+    return "[" + " ".join(str(o) for o in orders_of(structure)) + "]"
+
+
+def run_label(cfg: dict) -> str:
+    """Readable run name, e.g. ``bj[2 2 2 2 2] · uniform_wide``."""
+    return f"{cfg['structure']['name']}{orders_string(cfg['structure'])} · {cfg['dataset']['name']}"
+
+
+def identify(cfg: dict, figures: bool = True) -> RunOutput:
+    """Estimate the configured structure on the dataset's estimation part and validate it."""
+    st, study = cfg["structure"], cfg["study"]
+    prep = load(cfg["dataset"], cfg["data_dir"])
+    options = {} if st["name"] == "arx" else {"max_iterations": int(st["max_iterations"])}
+    tic = time.perf_counter()
+    model = estimate(prep.est, st["name"], orders_of(st), st["initial_condition"], **options)
+    fit_seconds = time.perf_counter() - tic
+
+    horizon = int(study["val_horizon"])
+    val_fit, yhat = compare(prep.val, model, horizon)
+    val_fit_sim, ysim = compare(prep.val, model, math.inf)
+    rr = resid(prep.val, model, lags=int(study["resid_lags"]))
+    rep = model.report
+    poles = model.poles()
+    metrics = {
+        "val_fit": val_fit, "val_fit_sim": val_fit_sim, "est_fit": rep.fit_percent,
+        "loss": rep.loss, "fpe": rep.fpe, "aic": rep.aic, "aicc": rep.aicc, "bic": rep.bic,
+        "n_params": rep.n_params, "iterations": rep.iterations, "fit_seconds": fit_seconds,
+        "whiteness_stat": rr.whiteness_stat, "whiteness_pvalue": rr.whiteness_pvalue,
+        "whiteness_pass": float(rr.white),
+        "independence_stat": rr.independence_stat, "independence_pvalue": rr.independence_pvalue,
+        "independence_pass": float(rr.independent),
+        "resid_auto_outside": rr.auto_outside, "resid_cross_outside": rr.cross_outside,
+        "max_pole_radius": float(np.max(np.abs(poles))) if poles.size else 0.0,
+        "dcgain": model.dcgain(),
+        "n_est": prep.est.N, "n_val": prep.val.N, "Ts": prep.data.Ts, "u0": prep.u0,
+    }
+    true_sys = None
+    if cfg["dataset"]["source"] == "sim" and study["true_plant"]:
+        true_sys = true_plant(prep)
+        metrics.update(true_distance(model, true_sys))
+    out = RunOutput(model=model, metrics={k: float(v) for k, v in metrics.items()},
+                    resid=resid_json(rr), prepared=prep)
+    if figures:
+        out.figures = draw(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon)
+    return out
+
+
+# ---------------------------------------------------------------------------- truth and data
+def true_plant(prep: Prepared):
+    """The simulator's linearisation at the record's working point, discrete at the data's Ts.
+
+    Compared for G only: the identified model is on detrended data, so offsets do not
+    enter; units are the simulator's (A → cm) on both sides.
+    """
+    import control as ct
+
+    from maglev.plant import Levitator
+
+    lin = Levitator(zero_at_10=True).linearize(prep.u0, Ts=prep.data.Ts)
+    s = lin.sys_d
+    return ct.ss(s.A, s.B, s.C, s.D, s.dt, name="true linearised plant")
+
+
+def true_distance(model: PolyModel, true_sys, n: int = 2048) -> dict[str, float]:
+    """Relative H2 error of G (on a uniform grid up to Nyquist) and the DC-gain error."""
+    import control as ct
+
+    w = np.linspace(0.0, math.pi / model.Ts, n)
+    g = model.freqresp(w)
+    g0 = np.asarray(ct.frequency_response(true_sys, w).complex).reshape(-1)
+    h2_rel = float(np.sqrt(np.mean(np.abs(g - g0) ** 2) / np.mean(np.abs(g0) ** 2)))
+    dc0 = float(np.real(g0[0]))
+    dc = model.dcgain()
+    return {"g_h2_rel_err": h2_rel, "dcgain_true": dc0, "dcgain_err": dc - dc0,
+            "dcgain_rel_err": abs(dc - dc0) / abs(dc0) if dc0 else math.inf}
+
+
+def spectral_estimate(data, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Nonparametric G = Φyu/Φuu by Welch cross-spectra (Hann windows, 50 % overlap); (ω rad/s, G)."""
+    from scipy import signal
+
+    nperseg = nperseg or int(min(512, max(64, data.N // 16)))
+    f, p_uy = signal.csd(data.u, data.y, fs=1.0 / data.Ts, nperseg=nperseg)
+    _, p_uu = signal.welch(data.u, fs=1.0 / data.Ts, nperseg=nperseg)
+    keep = f > 0
+    return 2 * math.pi * f[keep], p_uy[keep] / p_uu[keep]
+
+
+def resid_json(rr: ResidResult) -> dict:
+    """The residual analysis without the residual sequence: correlations, bands and tests."""
+    return {
+        "auto_lags": rr.auto_lags.tolist(), "auto_corr": rr.auto_corr.tolist(), "auto_band": rr.auto_band,
+        "cross_lags": rr.cross_lags.tolist(), "cross_corr": rr.cross_corr.tolist(),
+        "cross_band": rr.cross_band,
+        "whiteness_stat": rr.whiteness_stat, "whiteness_dof": rr.whiteness_dof,
+        "whiteness_pvalue": rr.whiteness_pvalue, "white": bool(rr.white),
+        "independence_stat": rr.independence_stat, "independence_dof": rr.independence_dof,
+        "independence_pvalue": rr.independence_pvalue, "independent": bool(rr.independent),
+        "auto_outside": rr.auto_outside, "cross_outside": rr.cross_outside,
+    }
+
+
+# ---------------------------------------------------------------------------- figures
+def draw(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon) -> dict:
+    from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid
+
+    label = model.label
+    fig_c = plot_compare(prep.val, [yhat, ysim], [val_fit, val_fit_sim],
+                         labels=[f"{label} {horizon}-step", f"{label} simulation"])
+    fig_c.axes[0].set_title(f"Validation data {prep.val_name}", fontsize="medium")
+    systems = [model] + ([true_sys] if true_sys is not None else [])
+    fig_pz = plot_pzmap(systems)
+    fig_b = plot_bode(model, true_system=true_sys)
+    w, g = spectral_estimate(prep.data)
+    ax_mag, ax_ph = fig_b.axes[0], fig_b.axes[1]
+    nyq = math.pi / prep.data.Ts
+    keep = w <= nyq
+    ax_mag.semilogx(w[keep], 20 * np.log10(np.abs(g[keep])), ".", color="0.5", markersize=3,
+                    label="spectral estimate Φyu/Φuu", zorder=0)
+    ax_ph.semilogx(w[keep], np.degrees(np.unwrap(np.angle(g[keep]))), ".", color="0.5", markersize=3,
+                   zorder=0)
+    ax_mag.legend(loc="best", fontsize="small")
+    return {"compare.png": fig_c, "resid.png": plot_resid(rr), "pzmap.png": fig_pz, "bode.png": fig_b}

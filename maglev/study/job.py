@@ -1,0 +1,156 @@
+"""One Hydra job = one MLflow run: check the config, skip if done, identify, log, finish.
+
+A config error (impossible orders, missing data file, ...) raises before any run is
+created.  An error while identifying marks the run FAILED with the traceback logged
+as ``error.txt`` and a short ``error`` tag; the job then returns normally so the rest
+of the sweep goes on (``study.fail_on_error=true`` re-raises instead).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import traceback
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from maglev.study import tracking
+from maglev.study.schema import typed
+
+log = logging.getLogger("maglev.study")
+
+
+class StudyConfigError(ValueError):
+    """A config that passed the schema but cannot describe a run (says which key is wrong)."""
+
+
+def plain_config(cfg: DictConfig) -> dict:
+    """The resolved task config as plain Python (enums as strings), with the schema re-applied."""
+    cfg = typed(cfg)
+    return OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+
+
+def check(cfg: dict) -> None:
+    """Semantic checks the schema cannot express; raise ``StudyConfigError`` naming the key."""
+    from maglev.structure import PolySpec
+    from maglev.study.datasets import data_path
+    from maglev.study.identify import orders_of
+
+    st, ds = cfg["structure"], cfg["dataset"]
+    try:
+        PolySpec.from_orders(st["name"], orders_of(st))
+    except ValueError as exc:
+        raise StudyConfigError(f"structure: {exc}") from None
+    pp = ds["preprocess"]
+    if not 0 < pp["split"] < 1:
+        raise StudyConfigError(f"dataset.preprocess.split must be in (0, 1), got {pp['split']}")
+    if pp["decimate"] < 1 or pp["trim"] < 0:
+        raise StudyConfigError("dataset.preprocess: decimate must be >= 1 and trim >= 0, "
+                               f"got decimate={pp['decimate']}, trim={pp['trim']}")
+    if ds["source"] == "sim":
+        from maglev.labdata import ExperimentSpec
+
+        try:
+            ExperimentSpec(kind=ds["input_class"], low=ds["low"], high=ds["high"],
+                           alpha=ds["alpha"] if ds["input_class"] == "binary" else None,
+                           duration_s=ds["duration_s"], seed=ds["seed"], Ts=ds["Ts"])
+        except ValueError as exc:
+            raise StudyConfigError(f"dataset {ds['name']!r}: {exc}") from None
+    else:
+        try:
+            data_path(ds, cfg["data_dir"])
+        except FileNotFoundError as exc:
+            raise StudyConfigError(str(exc)) from None
+    if cfg["study"]["val_horizon"] < 1:
+        raise StudyConfigError(f"study.val_horizon must be >= 1, got {cfg['study']['val_horizon']}")
+
+
+def hydra_context() -> dict:
+    """Output dir, overrides and sweep dir of the running Hydra job ({} outside Hydra)."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+        from hydra.types import RunMode
+
+        hc = HydraConfig.get()
+    except (ImportError, ValueError):
+        return {}
+    multirun = hc.mode == RunMode.MULTIRUN
+    return {"output_dir": hc.runtime.output_dir, "overrides": list(hc.overrides.task),
+            "sweep_dir": hc.sweep.dir if multirun else None, "job_num": hc.job.num if multirun else None}
+
+
+def parent_run_id(ctx: dict) -> str | None:
+    """The sweep's parent run: from the file the sweep callback wrote, else the environment."""
+    if ctx.get("sweep_dir"):
+        f = Path(ctx["sweep_dir"]) / tracking.PARENT_FILE
+        if f.is_file():
+            return f.read_text().strip() or None
+        return os.environ.get(tracking.PARENT_ENV)
+    return None
+
+
+def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
+    from maglev.study.identify import orders_string
+
+    ds, st = cfg["dataset"], cfg["structure"]
+    tags = {
+        "kind": "model", "dataset": ds["name"], "input_class": ds["input_class"],
+        "data_source": ds["source"], "structure": st["name"], "orders": orders_string(st),
+        "val_dataset": f"{ds['name']}[val]", "config_hash": chash, "sweep": cfg["study"]["name"],
+        **tracking.process_tags(),
+    }
+    if ctx:
+        tags["hydra.output_dir"] = ctx["output_dir"]
+        tags["hydra.overrides"] = " ".join(ctx["overrides"])[:5000]
+    if parent:
+        tags["mlflow.parentRunId"] = parent
+    return tags
+
+
+def run(cfg: DictConfig) -> float | None:
+    """The task of ``study.py``: returns the run's ``val_fit`` (None if it failed)."""
+    from maglev.study.identify import identify, run_label
+
+    plain = plain_config(cfg)
+    check(plain)
+    chash = tracking.config_hash(plain)
+    label = run_label(plain)
+    client, exp_id = tracking.connect(plain["tracking"])
+    if plain["study"]["skip_finished"]:
+        done = tracking.finished_run(client, exp_id, chash)
+        if done:
+            log.info("skip %s: run %s with config hash %s is FINISHED", label, done, chash[:10])
+            return None
+    ctx = hydra_context()
+    run_info = client.create_run(exp_id, run_name=label,
+                                 tags=run_tags(plain, chash, ctx, parent_run_id(ctx))).info
+    run_id = run_info.run_id
+    try:
+        tracking.log_batch(client, run_id, params=tracking.flatten(plain))
+        out = identify(plain, figures=plain["tracking"]["log_figures"])
+        files = {"config/config.yaml": OmegaConf.to_yaml(OmegaConf.create(plain)),
+                 "model/model.json": out.model.to_json(), "model/summary.txt": out.model.summary(),
+                 "resid/resid.json": out.resid, "data/data.json": out.prepared.info()}
+        if ctx:
+            hydra_dir = Path(ctx["output_dir"]) / ".hydra"
+            for f in sorted(hydra_dir.glob("*.yaml")):
+                files[f"config/hydra/{f.name}"] = f
+        files.update({f"figures/{name}": fig for name, fig in out.figures.items()})
+        tracking.log_files(client, run_id, files)
+        tracking.log_batch(client, run_id, metrics=out.metrics)
+        client.set_terminated(run_id, "FINISHED")
+        log.info("%s: val_fit %.2f %%  (run %s)", label, out.metrics["val_fit"], run_id)
+        return out.metrics["val_fit"]
+    except BaseException as exc:  # noqa: BLE001 — record every way of dying
+        status = "FAILED" if isinstance(exc, Exception) else "KILLED"
+        text = "".join(traceback.format_exception(exc))
+        try:
+            tracking.log_files(client, run_id, {"error.txt": text})
+            tracking.log_batch(client, run_id, tags={"error": f"{type(exc).__name__}: {exc}"[:4000]})
+        finally:
+            client.set_terminated(run_id, status)
+        log.error("%s: run %s %s: %s: %s", label, run_id, status, type(exc).__name__, exc)
+        if status == "KILLED" or plain["study"]["fail_on_error"]:
+            raise
+        return None

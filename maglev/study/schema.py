@@ -1,0 +1,222 @@
+"""Structured-config schemas of the study, registered in Hydra's ConfigStore.
+
+Every YAML file under ``conf/`` starts from one of these schemas (through its
+defaults list), so a misspelt key (``structure.nx=2``), a wrong type
+(``structure.na=two``) or an unknown enum value fails while Hydra composes the
+config — before any job starts and before any MLflow run exists — and the error
+names the key.  Orders live in per-structure schemas: ``structure.na`` exists for
+``arx``/``armax`` only, so ``structure=oe structure.na=2`` is refused as well.
+
+``structure.order`` is a shorthand: every polynomial order of the structure
+defaults to it (``na: ${.order}``), so one sweep axis ``structure.order=2,3`` works
+for all structures, while ``structure.na=3`` still overrides a single order.
+
+The resolver ``${maglev.root:}`` gives the project root (``$MAGLEV_ROOT``, else the
+directory holding ``study.py`` and ``conf/``, else the current directory).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Any, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig, OmegaConf
+
+
+def project_root() -> str:
+    """``$MAGLEV_ROOT``, else the checkout holding ``study.py`` and ``conf/``, else the cwd."""
+    env = os.environ.get("MAGLEV_ROOT")
+    if env:
+        return str(Path(env).resolve())
+    here = Path(__file__).resolve().parents[2]
+    if (here / "study.py").is_file() and (here / "conf").is_dir():
+        return str(here)
+    return str(Path.cwd().resolve())
+
+
+if not OmegaConf.has_resolver("maglev.root"):
+    OmegaConf.register_new_resolver("maglev.root", project_root)
+
+
+class InputClass(Enum):
+    uniform = "uniform"
+    binary = "binary"
+
+
+class InitialCondition(Enum):
+    auto = "auto"
+    zero = "zero"
+    estimate = "estimate"
+    backcast = "backcast"
+
+
+@dataclass
+class PreprocessCfg:
+    """Applied in this order: trim, detrend, decimate, split."""
+
+    trim: int = 2000  # samples dropped at the start (the magnet's start-up transient)
+    detrend: bool = True  # remove the means of u and y
+    decimate: int = 1  # keep every k-th sample after an anti-aliasing filter
+    split: float = 0.5  # estimation fraction; the rest is validation data
+
+
+@dataclass
+class SimDatasetCfg:
+    """A lab experiment run on the simulator (``maglev.labdata``)."""
+
+    name: str = MISSING
+    source: str = "sim"
+    input_class: InputClass = MISSING  # the signal: uniform white noise or random binary
+    low: float = MISSING  # A
+    high: float = MISSING  # A
+    alpha: Optional[float] = None  # switching probability (binary only)
+    duration_s: float = 20.0
+    seed: int = 0
+    Ts: float = 0.001
+    preprocess: PreprocessCfg = field(default_factory=PreprocessCfg)
+
+
+@dataclass
+class FileDatasetCfg:
+    """A recorded experiment: ``file`` (.mat or .csv) relative to the top-level ``data_dir``."""
+
+    name: str = MISSING
+    source: str = "file"
+    input_class: InputClass = MISSING
+    file: str = MISSING
+    u: str = "u"  # variable / column of the input
+    y: str = "y"  # variable / column of the output
+    Ts: Optional[float] = None  # seconds; None: read from the file
+    preprocess: PreprocessCfg = field(default_factory=PreprocessCfg)
+
+
+@dataclass
+class ArxCfg:
+    name: str = "arx"
+    order: int = 2
+    na: int = "${.order}"  # type: ignore[assignment]
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
+
+
+@dataclass
+class ArmaxCfg:
+    name: str = "armax"
+    order: int = 2
+    na: int = "${.order}"  # type: ignore[assignment]
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nc: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
+    max_iterations: int = 100
+
+
+@dataclass
+class OeCfg:
+    name: str = "oe"
+    order: int = 2
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nf: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
+    max_iterations: int = 100
+
+
+@dataclass
+class BjCfg:
+    name: str = "bj"
+    order: int = 2
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nc: int = "${.order}"  # type: ignore[assignment]
+    nd: int = "${.order}"  # type: ignore[assignment]
+    nf: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
+    max_iterations: int = 100
+
+
+ORDER_KEYS = {"arx": ("na", "nb", "nk"), "armax": ("na", "nb", "nc", "nk"),
+              "oe": ("nb", "nf", "nk"), "bj": ("nb", "nc", "nd", "nf", "nk")}
+
+
+@dataclass
+class TrackingCfg:
+    uri: str = MISSING  # sqlite:///ABS/PATH/mlflow.db or http://host:port
+    artifact_location: Optional[str] = None  # root folder for a local store; None: the server decides
+    experiment: str = "maglev"
+    reap: bool = True  # before a sweep, mark runs of dead local processes KILLED
+    log_figures: bool = True
+
+
+@dataclass
+class LabCfg:
+    """The lab-level steps logged once per sweep on the parent run."""
+
+    enabled: bool = True
+    staircase_file: Optional[str] = None  # relative to data_dir; None: simulate the lab's staircase
+    staircase_u: str = "u"
+    staircase_y: str = "y"
+    levels: int = 21  # number of staircase levels
+    tail: float = 50.0  # percent of each level averaged as stationary
+    energy_fraction: float = 0.8  # share of the output energy defining the band for alpha*
+
+
+@dataclass
+class StudyCfg:
+    name: str = "study"  # sweep name: the parent run's name and the sweep folder
+    val_horizon: int = 1  # prediction horizon of val_fit (1 = one step ahead)
+    resid_lags: int = 25
+    true_plant: bool = True  # simulated data: distance to the simulator's linearisation
+    skip_finished: bool = True  # skip a config whose hash already has a FINISHED run
+    fail_on_error: bool = False  # re-raise a failing run's error (stops a basic-launcher sweep)
+
+
+@dataclass
+class Config:
+    dataset: Any = MISSING
+    structure: Any = MISSING
+    tracking: TrackingCfg = field(default_factory=TrackingCfg)
+    lab: LabCfg = field(default_factory=LabCfg)
+    study: StudyCfg = field(default_factory=StudyCfg)
+    data_dir: str = "${oc.env:MAGLEV_REFDATA,${maglev.root:}/../shared/refdata}"
+
+
+DATASET_SCHEMAS = {"sim": SimDatasetCfg, "file": FileDatasetCfg}
+STRUCTURE_SCHEMAS = {"arx": ArxCfg, "armax": ArmaxCfg, "oe": OeCfg, "bj": BjCfg}
+
+
+def register() -> None:
+    """Register the schemas (idempotent): ``base_config`` and ``<group>/<kind>_schema``."""
+    cs = ConfigStore.instance()
+    cs.store(name="base_config", node=Config)
+    for kind, node in DATASET_SCHEMAS.items():
+        cs.store(group="dataset", name=f"{kind}_schema", node=node)
+    for kind, node in STRUCTURE_SCHEMAS.items():
+        cs.store(group="structure", name=f"{kind}_schema", node=node)
+    cs.store(group="tracking", name="tracking_schema", node=TrackingCfg)
+    cs.store(group="lab", name="lab_schema", node=LabCfg)
+
+
+def typed(cfg: DictConfig) -> DictConfig:
+    """Re-apply the schemas to a config that has lost them (e.g. one loaded from a YAML file).
+
+    Raises the same ``ValidationError``/``ConfigKeyError`` naming the key as composition does.
+    """
+    base = OmegaConf.structured(Config)
+    ds_kind = OmegaConf.select(cfg, "dataset.source", default="sim")
+    st_kind = OmegaConf.select(cfg, "structure.name", default="arx")
+    if ds_kind not in DATASET_SCHEMAS:
+        raise ValueError(f"dataset.source must be one of {list(DATASET_SCHEMAS)}, got {ds_kind!r}")
+    if st_kind not in STRUCTURE_SCHEMAS:
+        raise ValueError(f"structure.name must be one of {list(STRUCTURE_SCHEMAS)}, got {st_kind!r}")
+    base.dataset = OmegaConf.structured(DATASET_SCHEMAS[ds_kind])
+    base.structure = OmegaConf.structured(STRUCTURE_SCHEMAS[st_kind])
+    return OmegaConf.merge(base, cfg)
+
+
+register()

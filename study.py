@@ -1,0 +1,32 @@
+"""Entry point of the declarative study (Hydra app; one job = one MLflow run).
+
+    python study.py                                        # one run: conf/config.yaml defaults
+    python study.py dataset=binary_a025 structure=bj structure.order=3
+    python study.py -m +experiment=lab                     # the lab sweep (24 runs)
+    python study.py -m +experiment=lab hydra/launcher=parallel
+
+The work is in ``maglev.study`` (see docs/tracking.md for what every run logs).
+"""
+
+import warnings
+
+import matplotlib
+
+matplotlib.use("Agg")
+warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
+
+import hydra  # noqa: E402
+from omegaconf import DictConfig  # noqa: E402
+
+import maglev.study.schema  # noqa: E402,F401  (registers the schemas and ${maglev.root:})
+
+
+@hydra.main(version_base="1.3", config_path="conf", config_name="config")
+def main(cfg: DictConfig) -> float | None:
+    from maglev.study.job import run
+
+    return run(cfg)
+
+
+if __name__ == "__main__":
+    main()

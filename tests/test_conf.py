@@ -1,0 +1,165 @@
+"""The study's Hydra configs: composition, schemas, clear errors before any run exists."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.errors import ConfigCompositionException
+from omegaconf import OmegaConf
+from omegaconf.errors import ConfigKeyError, ValidationError
+
+from maglev.study import schema  # noqa: F401  (registers schemas and ${maglev.root:})
+from maglev.study.job import StudyConfigError, check, plain_config
+from maglev.study.tracking import config_hash
+
+REPO = Path(__file__).resolve().parents[1]
+CONF = REPO / "conf"
+SIM = sorted(p.stem for p in (CONF / "dataset").glob("*.yaml") if not p.stem.startswith("real_"))
+REAL = sorted(p.stem for p in (CONF / "dataset").glob("real_*.yaml"))
+STRUCTURES = ["arx", "armax", "oe", "bj"]
+
+pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
+
+
+def cfg_for(overrides=(), hydra=False):
+    with initialize_config_dir(version_base="1.3", config_dir=str(CONF)):
+        return compose("config", overrides=list(overrides), return_hydra_config=hydra)
+
+
+def task(cfg):
+    return plain_config(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
+
+
+def test_default_config_is_simulated_data_into_a_local_store():
+    c = task(cfg_for())
+    assert c["dataset"]["name"] == "uniform_wide" and c["dataset"]["source"] == "sim"
+    assert c["structure"]["name"] == "arx"
+    assert c["tracking"]["uri"] == f"sqlite:///{REPO}/mlruns/mlflow.db"
+    assert c["tracking"]["artifact_location"] == f"{REPO}/mlruns/artifacts"
+    check(c)  # needs nothing but the repository
+
+
+@pytest.mark.parametrize("name", SIM + REAL)
+def test_every_dataset_composes(name):
+    c = task(cfg_for([f"dataset={name}"]))
+    assert c["dataset"]["name"] == name
+    assert c["dataset"]["input_class"] in ("uniform", "binary")
+    assert set(c["dataset"]["preprocess"]) == {"trim", "detrend", "decimate", "split"}
+    if name in SIM:
+        check(c)
+
+
+def test_real_file_variables_follow_the_refdata_readme():
+    d1 = task(cfg_for(["dataset=real_binary_signal_1"]))["dataset"]
+    assert (d1["u"], d1["y"], d1["Ts"]) == ("ub", "yb", 0.001)
+    assert task(cfg_for(["dataset=real_white_noise_1"]))["dataset"]["u"] == "u1"
+    d2 = task(cfg_for(["dataset=real_white_noise_2"]))["dataset"]
+    assert (d2["u"], d2["y"]) == ("u2", "y2")
+
+
+def test_data_dir_defaults_beside_the_repo_and_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.delenv("MAGLEV_REFDATA", raising=False)
+    assert task(cfg_for())["data_dir"] == f"{REPO}/../shared/refdata"
+    monkeypatch.setenv("MAGLEV_REFDATA", str(tmp_path))
+    c = task(cfg_for(["dataset=real_white_noise_2"]))
+    assert c["data_dir"] == str(tmp_path)
+    with pytest.raises(StudyConfigError, match="MAGLEV_REFDATA"):
+        check(c)  # the file is not in tmp_path: a clear error, before any run
+
+
+@pytest.mark.parametrize("name", STRUCTURES)
+def test_structures_and_order_overrides(name):
+    c = task(cfg_for([f"structure={name}", "structure.order=3", "structure.nk=1"]))["structure"]
+    keys = schema.ORDER_KEYS[name]
+    assert [c[k] for k in keys] == [3] * (len(keys) - 1) + [1]
+    one = keys[0]
+    c = task(cfg_for([f"structure={name}", f"structure.{one}=4"]))["structure"]
+    assert c[one] == 4 and all(c[k] == 2 for k in keys[1:-1])
+
+
+@pytest.mark.parametrize("overrides, needle", [
+    (["structure.nx=2"], "nx"),  # typo
+    (["structure.na=two"], "structure.na"),  # wrong type
+    (["structure=oe", "structure.na=2"], "na"),  # OE has no A polynomial
+    (["dataset.low=abc"], "dataset.low"),
+    (["dataset.preprocess.decimate=1.5"], "decimate"),
+    (["structure.initial_condition=guess"], "initial_condition"),
+    (["study.resid_lag=3"], "resid_lag"),
+    (["dataset=nope"], "dataset/nope"),  # unknown dataset
+    (["structure=nope"], "structure/nope"),  # unknown structure
+])
+def test_mistakes_fail_at_composition_naming_the_key(overrides, needle):
+    with pytest.raises((ConfigCompositionException, ValidationError, ConfigKeyError)) as err:
+        task(cfg_for(overrides))
+    text = str(err.value) + str(err.value.__cause__)
+    assert needle in text
+
+
+def test_semantic_errors_are_refused_before_a_run():
+    with pytest.raises(StudyConfigError, match="nb"):
+        check(task(cfg_for(["structure=oe", "structure.nb=0"])))
+    with pytest.raises(StudyConfigError, match="split"):
+        check(task(cfg_for(["dataset.preprocess.split=1.5"])))
+    with pytest.raises(StudyConfigError, match="alpha"):
+        check(task(cfg_for(["dataset=binary_a025", "dataset.alpha=null"])))
+
+
+def test_schema_is_reapplied_to_a_saved_config():
+    saved = OmegaConf.create(OmegaConf.to_yaml(cfg_for()))
+    saved.structure.na = "two"
+    with pytest.raises(ValidationError, match="structure.na"):
+        schema.typed(saved)
+
+
+def test_config_hash_ignores_shorthand_tracking_and_names():
+    a = task(cfg_for(["structure=bj", "structure.order=2"]))
+    b = task(cfg_for(["structure=bj", "structure.order=3", "structure.nb=2", "structure.nc=2",
+                      "structure.nd=2", "structure.nf=2", "tracking.uri=sqlite:////elsewhere.db",
+                      "study.name=other"]))
+    c = task(cfg_for(["structure=bj", "structure.nf=3"]))
+    assert config_hash(a) == config_hash(b) != config_hash(c)
+
+
+@pytest.mark.parametrize("name, n_datasets", [("lab", 3), ("lab_real", 3)])
+def test_experiments_declare_the_sweep(name, n_datasets):
+    cfg = cfg_for([f"+experiment={name}"], hydra=True)
+    params = cfg.hydra.sweeper.params
+    datasets = params["dataset"].split(",")
+    assert len(datasets) == n_datasets and len(params["structure"].split(",")) >= 3
+    assert len(params["structure.order"].split(",")) >= 2
+    assert str(cfg.hydra.mode) == "RunMode.MULTIRUN" and cfg.study.name == name
+    classes = {task(cfg_for([f"+experiment={name}", f"dataset={d}"]))["dataset"]["input_class"] for d in datasets}
+    assert classes == {"uniform", "binary"}
+    if name == "lab":
+        inputs = [task(cfg_for([f"dataset={d}"]))["dataset"]["input_class"] for d in datasets]
+        assert inputs.count("uniform") == 2 and inputs.count("binary") == 1
+
+
+def test_launcher_configs_exist():
+    cfg = cfg_for(["hydra/launcher=parallel"], hydra=True)
+    assert cfg.hydra.launcher.n_jobs == 2 and "joblib" in cfg.hydra.launcher._target_
+    assert cfg_for(hydra=True).hydra.launcher._target_.endswith("BasicLauncher")
+    assert (CONF / "hydra" / "launcher" / "slurm.yaml").is_file()
+
+
+def test_command_line_typo_creates_no_run(tmp_path):
+    db = tmp_path / "mlflow.db"
+    for args in (["structure.na=abc"], ["-m", "structure=arx,oe", "structure.na=abc"], ["dataset=nope"]):
+        proc = subprocess.run(
+            [sys.executable, str(REPO / "study.py"), *args, f"tracking.uri=sqlite:///{db}",
+             f"hydra.run.dir={tmp_path}/out", f"hydra.sweep.dir={tmp_path}/multi"],
+            capture_output=True, text=True, cwd=tmp_path, timeout=300,
+            env={**os.environ, "MLFLOW_TRACKING_URI": ""},
+        )
+        assert proc.returncode != 0
+        assert "structure.na" in proc.stderr or "dataset/nope" in proc.stderr, proc.stderr[-2000:]
+    if db.exists():
+        from mlflow import MlflowClient
+
+        client = MlflowClient(f"sqlite:///{db}")
+        assert client.search_runs([e.experiment_id for e in client.search_experiments()]) == []

@@ -1,0 +1,186 @@
+"""End to end: tiny sweeps of study.py into a temporary MLflow store (subprocesses, sys.executable).
+
+Every subprocess gets an absolute ``tracking.uri`` in tmp_path and tmp Hydra output
+dirs, so nothing is written to the repository's mlruns/ or multirun/.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
+
+REPO = Path(__file__).resolve().parents[1]
+TINY = ["dataset.duration_s=4", "dataset.preprocess.trim=500"]  # 3500 samples → 875 + 875 after decimation
+FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png"}
+
+pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
+
+
+def run_study(store: Path, *args: str, timeout: float = 300, extra_env: dict | None = None,
+              check: bool = True) -> subprocess.CompletedProcess:
+    """``python study.py ARGS`` logging to ``store``/mlflow.db; outputs under ``store``."""
+    cmd = [sys.executable, str(REPO / "study.py"), *args,
+           f"tracking.uri=sqlite:///{store}/mlflow.db", f"tracking.artifact_location={store}/artifacts",
+           f"hydra.run.dir={store}/outputs", f"hydra.sweep.dir={store}/multirun"]
+    env = {**os.environ, **(extra_env or {})}
+    env.pop("MLFLOW_TRACKING_URI", None)
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=timeout, env=env)
+    if check:
+        assert proc.returncode == 0, proc.stderr[-4000:]
+    return proc
+
+
+def client_for(uri: str):
+    from mlflow import MlflowClient
+
+    client = MlflowClient(tracking_uri=uri)
+    exp = client.get_experiment_by_name("maglev")
+    return client, exp.experiment_id
+
+
+def all_runs(store: Path):
+    client, exp_id = client_for(f"sqlite:///{store}/mlflow.db")
+    return client, exp_id, client.search_runs([exp_id], max_results=1000)
+
+
+def artifact_paths(client, run_id: str, path: str | None = None) -> set[str]:
+    out = set()
+    for a in client.list_artifacts(run_id, path):
+        out |= artifact_paths(client, run_id, a.path) if a.is_dir else {a.path}
+    return out
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    """2 datasets × 2 structures into a fresh store."""
+    store = tmp_path_factory.mktemp("study")
+    args = ["-m", "dataset=uniform_narrow,binary_a025", "structure=arx,oe", *TINY, "study.name=tiny"]
+    proc = run_study(store, *args)
+    return store, args, proc
+
+
+def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
+    store, _, _ = sweep
+    client, _, runs = all_runs(store)
+    parents = [r for r in runs if r.data.tags.get("kind") == "sweep"]
+    kids = [r for r in runs if r.data.tags.get("kind") == "model"]
+    assert len(parents) == 1 and len(kids) == 4
+    parent = parents[0]
+    assert parent.info.run_name == "tiny" and parent.info.status == "FINISHED"
+    assert parent.data.metrics["runs_finished"] == 4
+    assert {"lab/working_region.png", "lab/rise_time.png", "lab/output_spectrum.png", "lab/alpha.png",
+            "lab/lab.json"} <= artifact_paths(client, parent.info.run_id)
+    assert 0 < parent.data.metrics["lab.alpha_star"] <= 1
+    names = set()
+    for r in kids:
+        assert r.info.status == "FINISHED"
+        assert r.data.tags["mlflow.parentRunId"] == parent.info.run_id
+        t, m = r.data.tags, r.data.metrics
+        assert t["input_class"] == ("binary" if t["dataset"] == "binary_a025" else "uniform")
+        assert t["val_dataset"] == f"{t['dataset']}[val]" and len(t["config_hash"]) == 40
+        assert t["git_commit"] and t["orders"] == "[2 2 2]" and t["sweep"] == "tiny"
+        for key in ("val_fit", "val_fit_sim", "est_fit", "loss", "fpe", "aic", "bic", "n_params",
+                    "fit_seconds", "iterations", "whiteness_pvalue", "whiteness_pass",
+                    "independence_pvalue", "independence_pass", "g_h2_rel_err", "dcgain_rel_err"):
+            assert key in m, key
+        assert 50 < m["val_fit"] <= 100
+        assert r.data.params["structure.name"] == t["structure"]
+        assert r.data.params["dataset.duration_s"] == "4.0"
+        paths = artifact_paths(client, r.info.run_id)
+        assert FIGURES | {"config/config.yaml", "config/hydra/config.yaml", "config/hydra/overrides.yaml",
+                          "model/model.json", "resid/resid.json"} <= paths
+        names.add(r.info.run_name)
+    assert "oe[2 2 2] · binary_a025" in names
+
+
+def test_model_and_resid_artifacts_are_loadable(sweep):
+    import json
+
+    from maglev.models import PolyModel
+    from maglev.study.tracking import download_text
+
+    store, _, _ = sweep
+    client, _, runs = all_runs(store)
+    r = next(r for r in runs if r.data.tags.get("structure") == "arx")
+    model = PolyModel.from_json(download_text(client, r.info.run_id, "model/model.json"))
+    assert model.structure == "arx" and model.orders == (2, 2, 2)
+    res = json.loads(download_text(client, r.info.run_id, "resid/resid.json"))
+    assert len(res["auto_corr"]) == len(res["auto_lags"]) and res["auto_band"] > 0
+    assert res["whiteness_pvalue"] == r.data.metrics["whiteness_pvalue"]
+
+
+def test_reproduce_gives_identical_metrics(sweep):
+    store, _, _ = sweep
+    _, _, runs = all_runs(store)
+    r = next(r for r in runs if r.data.tags.get("structure") == "oe")
+    proc = subprocess.run([sys.executable, "-m", "maglev.reproduce", r.info.run_id,
+                           "--tracking-uri", f"sqlite:///{store}/mlflow.db"],
+                          capture_output=True, text=True, timeout=300, cwd=REPO)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "metrics identical" in proc.stdout and "DIFFERENT" not in proc.stdout
+
+
+def test_relaunch_runs_nothing_new_and_reaps_stale_runs(sweep):
+    store, args, _ = sweep
+    client, exp_id, before = all_runs(store)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    import socket
+
+    stale = client.create_run(exp_id, run_name="killed", tags={"kind": "model", "host": socket.gethostname(),
+                                                              "pid": str(dead.pid)}).info.run_id
+    proc = run_study(store, *args)
+    assert "skip" in proc.stdout + proc.stderr
+    client, _, after = all_runs(store)
+    assert client.get_run(stale).info.status == "KILLED"
+    finished = lambda runs: sorted(r.info.run_id for r in runs if r.data.tags.get("kind") == "model"  # noqa: E731
+                                   and r.info.status == "FINISHED")
+    assert finished(after) == finished(before)
+    assert len([r for r in after if r.data.tags.get("kind") == "sweep"]) == 1  # the parent is reused
+
+
+def test_failing_run_is_failed_and_the_sweep_goes_on(tmp_path):
+    # order 400 needs more samples than the tiny record has: the estimator refuses it
+    proc = run_study(tmp_path, "-m", "dataset=uniform_wide", "structure=arx", "structure.order=2,400", *TINY)
+    assert proc.returncode == 0
+    client, _, runs = all_runs(tmp_path)
+    kids = {r.data.tags["orders"]: r for r in runs if r.data.tags.get("kind") == "model"}
+    assert kids["[2 2 2]"].info.status == "FINISHED"
+    bad = kids["[400 400 2]"]
+    assert bad.info.status == "FAILED" and "orders too large" in bad.data.tags["error"]
+    assert "error.txt" in artifact_paths(client, bad.info.run_id)
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    assert parent.info.status == "FINISHED" and parent.data.metrics["runs_failed"] == 1
+
+
+def test_single_run_without_sweep(tmp_path):
+    run_study(tmp_path, "dataset=binary_a025", "structure=arx", *TINY)
+    _, _, runs = all_runs(tmp_path)
+    assert len(runs) == 1 and runs[0].info.status == "FINISHED"
+    assert "mlflow.parentRunId" not in runs[0].data.tags and runs[0].data.tags["kind"] == "model"
+
+
+def test_reap_marks_only_dead_local_processes(tmp_path):
+    import socket
+
+    from maglev.study import tracking
+    from maglev.study.reap import reap
+
+    client, exp_id = tracking.connect({"uri": f"sqlite:///{tmp_path}/m.db", "experiment": "maglev",
+                                       "artifact_location": str(tmp_path / "a")})
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    host = socket.gethostname()
+    gone = client.create_run(exp_id, tags={"host": host, "pid": str(dead.pid)}).info.run_id
+    alive = client.create_run(exp_id, tags={"host": host, "pid": str(os.getpid())}).info.run_id
+    other = client.create_run(exp_id, tags={"host": "elsewhere", "pid": "1"}).info.run_id
+    assert reap(client, [exp_id]) == [gone]
+    assert [client.get_run(r).info.status for r in (gone, alive, other)] == ["KILLED", "RUNNING", "RUNNING"]
+    assert set(reap(client, [exp_id], older_than_hours=-1)) == {alive, other}

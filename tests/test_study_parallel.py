@@ -1,0 +1,107 @@
+"""Parallel and server modes: joblib workers sharing one SQLite store; an `mlflow server` on 127.0.0.1."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from .test_study import REPO, TINY, all_runs, run_study
+
+pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
+
+
+def test_joblib_two_workers_lose_no_run(tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    run_study(tmp_path, "-m", "hydra/launcher=parallel", "hydra.launcher.n_jobs=2",
+              "dataset=uniform_narrow,binary_a025", "structure=arx,oe", "structure.order=2,3", *TINY)
+    _, _, runs = all_runs(tmp_path)
+    parent = [r for r in runs if r.data.tags.get("kind") == "sweep"]
+    kids = [r for r in runs if r.data.tags.get("kind") == "model"]
+    assert len(parent) == 1 and len(kids) == 8
+    assert all(r.info.status == "FINISHED" and "val_fit" in r.data.metrics for r in kids)
+    assert {r.data.tags["mlflow.parentRunId"] for r in kids} == {parent[0].info.run_id}
+    assert len({r.data.tags["config_hash"] for r in kids}) == 8
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _api(base: str, endpoint: str, body: dict | None = None) -> dict:
+    data = None if body is None else json.dumps(body).encode()
+    req = urllib.request.Request(f"{base}/api/2.0/mlflow/{endpoint}", data=data,
+                                 headers={"Content-Type": "application/json"})
+    with urllib.request.urlopen(req, timeout=30) as resp:
+        return json.loads(resp.read())
+
+
+@pytest.fixture
+def mlflow_server(tmp_path):
+    """`mlflow server` on a free 127.0.0.1 port, one worker, no job runner; always killed."""
+    port = _free_port()
+    env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
+    cmd = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", f"sqlite:///{tmp_path}/server.db",
+           "--artifacts-destination", str(tmp_path / "server-artifacts"), "--host", "127.0.0.1",
+           "--port", str(port), "--workers", "1"]
+    log = open(tmp_path / "server.log", "w")
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=tmp_path,
+                            start_new_session=True)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                with urllib.request.urlopen(f"{base}/health", timeout=2) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                pass
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"mlflow server did not start: {(tmp_path / 'server.log').read_text()[-3000:]}")
+            time.sleep(0.5)
+        yield base
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)  # the server's own process group (uvicorn workers)
+            proc.wait(timeout=20)
+        except (ProcessLookupError, subprocess.TimeoutExpired):
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+        log.close()
+
+
+@pytest.mark.slow
+def test_server_mode_runs_are_listed_by_the_rest_api(tmp_path, mlflow_server):
+    store = tmp_path / "client"
+    store.mkdir()
+    cmd = [sys.executable, str(REPO / "study.py"), "-m", "tracking=server", f"tracking.uri={mlflow_server}",
+           "dataset=uniform_narrow", "structure=arx,oe", *TINY,
+           f"hydra.sweep.dir={store}/multirun", f"hydra.run.dir={store}/outputs"]
+    env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    exp = _api(mlflow_server, "experiments/get-by-name?experiment_name=maglev")["experiment"]
+    found = _api(mlflow_server, "runs/search", {"experiment_ids": [exp["experiment_id"]],
+                                                "filter": "tags.kind = 'model'", "max_results": 100})
+    runs = found["runs"]
+    assert len(runs) == 2 and all(r["info"]["status"] == "FINISHED" for r in runs)
+    tags = [{t["key"]: t["value"] for t in r["data"]["tags"]} for r in runs]
+    parents = {t["mlflow.parentRunId"] for t in tags}
+    assert len(parents) == 1
+    parent = _api(mlflow_server, f"runs/get?run_id={parents.pop()}")["run"]
+    assert parent["info"]["status"] == "FINISHED"
+    run_id = runs[0]["info"]["run_id"]
+    listing = _api(mlflow_server, f"artifacts/list?run_id={run_id}&path=figures")
+    assert {"figures/bode.png", "figures/compare.png"} <= {f["path"] for f in listing["files"]}
+    assert not (Path(store) / "mlruns").exists()
