@@ -170,12 +170,27 @@ def _solve_triangular(r: np.ndarray, rhs: np.ndarray, data: IOData) -> np.ndarra
     return solve_triangular(r, rhs)
 
 
-def _ls_arx(y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _lstsq(phi: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Least squares through one R-only QR of [Φ y]; SVD-based lstsq if Φ is rank deficient."""
+    p = phi.shape[1]
+    full = np.linalg.qr(np.column_stack([phi, target]), mode="r")
+    diag = np.abs(np.diag(full)[:p])
+    if p == 0 or diag.min() <= 1e-10 * diag.max():
+        return np.linalg.lstsq(phi, target, rcond=None)[0]
+    from scipy.linalg import solve_triangular
+
+    return solve_triangular(full[:p, :p], full[:p, p])
+
+
+def _ls_arx(
+    y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int, residuals: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Plain ARX by least squares on fully measured rows; returns (A, B, residuals over all N)."""
     spec = PolySpec("pem", na=na, nb=nb, nk=nk)
     phi, target = _regression(y, u, spec, spec.max_lag)
-    theta, *_ = np.linalg.lstsq(phi, target, rcond=None)
-    A, B, *_ = spec.polys(theta)
+    A, B, *_ = spec.polys(_lstsq(phi, target))
+    if not residuals:
+        return A, B, None
     e = filt(A, np.ones(1), y) - (filt(B, np.ones(1), u) if nb else 0.0)
     return A, B, e
 
@@ -183,9 +198,7 @@ def _ls_arx(y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int) -> tuple[np
 def _ls_columns(target: np.ndarray, columns: list[np.ndarray], first: int) -> np.ndarray:
     if not columns:
         return np.zeros(0)
-    phi = np.column_stack([c[first:] for c in columns])
-    theta, *_ = np.linalg.lstsq(phi, target[first:], rcond=None)
-    return theta
+    return _lstsq(np.column_stack([c[first:] for c in columns]), target[first:])
 
 
 def _shift(x: np.ndarray, lag: int) -> np.ndarray:
@@ -202,20 +215,27 @@ def _high_order(n_params: int, N: int) -> int:
 def _steiglitz_mcbride(y, u, nb, nf, nk, F0=None, iterations: int = 30):
     """OE start: refit B, F by least squares on data prefiltered by 1/F until F settles."""
     if nf == 0:
-        _, B, _ = _ls_arx(y, u, 0, nb, nk)
+        _, B, _ = _ls_arx(y, u, 0, nb, nk, residuals=False)
         return B, np.ones(1)
-    F = F0 if F0 is not None else _ls_arx(y, u, nf, nb, nk)[0]
+    F = F0 if F0 is not None else _ls_arx(y, u, nf, nb, nk, residuals=False)[0]
     F = stabilize(F)
     B = np.zeros(nb + nk)
     for _ in range(iterations):
         yf, uf = filt(np.ones(1), F, y), filt(np.ones(1), F, u)
-        Fn, Bn, _ = _ls_arx(yf, uf, nf, nb, nk)
+        Fn, Bn, _ = _ls_arx(yf, uf, nf, nb, nk, residuals=False)
         Fn = stabilize(Fn)
         change = np.linalg.norm(Fn - F) / (np.linalg.norm(F) + 1e-12)
         F, B = Fn, Bn
-        if change < 1e-7:
+        if change < 1e-6:  # a starting point only: the minimiser polishes it
             break
     return B, F
+
+
+def _g_starts(y, u, nb, nf, nk) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Starting (B, F) pairs for the input path of OE/BJ: Steiglitz–McBride and plain ARX."""
+    B, F = _steiglitz_mcbride(y, u, nb, nf, nk)
+    Aarx, Barx, _ = _ls_arx(y, u, nf, nb, nk, residuals=False)
+    return [(B, F), (Barx, stabilize(Aarx))]
 
 
 def _hannan_rissanen(v: np.ndarray, nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:
@@ -231,8 +251,9 @@ def _hannan_rissanen(v: np.ndarray, nc: int, nd: int) -> tuple[np.ndarray, np.nd
     return stabilize(C), stabilize(D)
 
 
-def _starts(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
-    """Candidate starting parameter vectors for the structure."""
+def _starts(spec: PolySpec, y: np.ndarray, u: np.ndarray, g_starts=None) -> list[np.ndarray]:
+    """Candidate starting parameter vectors for the structure (``g_starts``: precomputed
+    :func:`_g_starts` for OE/BJ, shared with the OE-first BJ start)."""
     na, nb, nc, nd, nf, nk = spec.na, spec.nb, spec.nc, spec.nd, spec.nf, spec.nk
     starts = []
     if nf == 0 and nd == 0:  # ARMAX (or ARX-like pem): pseudo-linear regression and plain ARX
@@ -248,13 +269,10 @@ def _starts(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
             A, B, C, *_ = PolySpec("pem", na=na, nb=nb, nc=nc, nk=nk).polys(theta)
             starts.append(spec.theta(A, B, stabilize(C)))
         return starts
-    if na == 0:  # OE / BJ: Steiglitz–McBride for G, Hannan–Rissanen for the noise
-        B, F = _steiglitz_mcbride(y, u, nb, nf, nk)
-        C, D = _hannan_rissanen(y - filt(B, F, u), nc, nd)
-        starts.append(spec.theta(None, B, C, D, F))
-        Aarx, Barx, _ = _ls_arx(y, u, nf, nb, nk)
-        C2, D2 = _hannan_rissanen(y - filt(Barx, stabilize(Aarx), u), nc, nd)
-        starts.append(spec.theta(None, Barx, C2, D2, stabilize(Aarx)))
+    if na == 0:  # OE / BJ: Steiglitz–McBride or ARX for G, Hannan–Rissanen for the noise
+        for B, F in g_starts if g_starts is not None else _g_starts(y, u, nb, nf, nk):
+            C, D = _hannan_rissanen(y - filt(B, F, u), nc, nd)
+            starts.append(spec.theta(None, B, C, D, F))
         if nd:  # BJ holding an ARX model: F = D = A_arx, C = 1 (its loss is the ARX loss)
             n = min(nf, nd)
             Aarx, Barx, _ = _ls_arx(y, u, n, nb, nk)
@@ -278,9 +296,10 @@ def _pem(
     tolerance: float | None = None,
 ) -> PolyModel:
     y, u = _checked(data, spec, initial_condition)
-    starts = _starts(spec, y, u)
+    g_starts = _g_starts(y, u, spec.nb, spec.nf, spec.nk) if spec.na == 0 and spec.nb else None
+    starts = _starts(spec, y, u, g_starts)
     if spec.structure == "bj" or (spec.structure == "pem" and spec.na == 0 and spec.nf > 0):
-        starts.append(_bj_from_oe(spec, y, u, max_iterations, tolerance))
+        starts.append(_bj_from_oe(spec, y, u, g_starts, max_iterations, tolerance))
     if spec.na and (spec.nf or spec.nd):
         starts.append(_general_from_bj(spec, y, u, max_iterations, tolerance))
     fit_states = _wants_states(spec, starts, y, u, initial_condition)
@@ -317,16 +336,18 @@ def _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance):
         result = minimise(
             spec, starts[i], y, u, fit_states, max_iterations, tolerance,
             abandon_above=None if best is None else best.evaluation.loss * (1 + ABANDON_MARGIN),
+            known_minimum=best.evaluation.theta if converged else None,
         )
         if best is None or result.evaluation.loss < best.evaluation.loss * (1 - 1e-9):
             best = result
     return best
 
 
-def _bj_from_oe(spec: PolySpec, y, u, max_iterations, tolerance) -> np.ndarray:
+def _bj_from_oe(spec: PolySpec, y, u, g_starts, max_iterations, tolerance) -> np.ndarray:
     """BJ start: minimise the OE part first, then model its residual as ARMA."""
     oe_spec = PolySpec("oe", nb=spec.nb, nf=spec.nf, nk=spec.nk)
-    oe_best = _best_minimum(oe_spec, _starts(oe_spec, y, u), y, u, False, max_iterations, tolerance)
+    oe_starts = _starts(oe_spec, y, u, g_starts)
+    oe_best = _best_minimum(oe_spec, oe_starts, y, u, False, max_iterations, tolerance)
     _, B, _, _, F = oe_spec.polys(oe_best.evaluation.theta)
     C, D = _hannan_rissanen(oe_best.evaluation.e, spec.nc, spec.nd)
     return spec.theta(None, B, C, D, F)

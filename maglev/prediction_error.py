@@ -31,6 +31,7 @@ from .threads import single_threaded_blas
 MAX_RETRIES = 10  # damping grows ×2, ×4, ×8 … per failed try: past 1e5 × diag(JᵀJ) after ten
 NEGLIGIBLE = 1e3  # expected improvements below 1e3 × tolerance count as converged at a stall
 PATIENCE = 8  # iterations a secondary start gets before it must beat the best minimum
+SAME_MINIMUM = 1e-3  # relative parameter distance at which two runs share a minimum
 
 
 @dataclass
@@ -165,14 +166,17 @@ def minimise(
     max_iterations: int = 100,
     tolerance: float | None = None,
     abandon_above: float | None = None,
+    known_minimum: np.ndarray | None = None,
 ) -> Minimum:
     """Levenberg–Marquardt from ``theta0`` until the expected relative improvement < ``tolerance``.
 
     The default tolerance is ``1e-3 · d / N``: the loss of a fitted model fluctuates
     by about d/N relative between data sets, so improvements a thousand times
-    smaller than that change nothing a user can see.  With ``abandon_above`` the run
-    stops after ``PATIENCE`` iterations if its loss is still above that value (used
-    for secondary starting points once another start has converged).
+    smaller than that change nothing a user can see.  For secondary starting points,
+    once another start has converged: with ``abandon_above`` the run stops after
+    ``PATIENCE`` iterations if its loss is still above that value, and with
+    ``known_minimum`` it stops as soon as it reaches that parameter vector (within
+    ``SAME_MINIMUM`` relative distance), since it would only repeat that run's work.
     """
     if tolerance is None:
         tolerance = max(1e-3 * spec.n_params / y.size, 1e-12)
@@ -190,6 +194,12 @@ def minimise(
             break
         if abandon_above is not None and iterations > PATIENCE and current.loss > abandon_above:
             termination = "abandoned: stays above the best minimum from another start"
+            iterations -= 1
+            break
+        if known_minimum is not None and np.linalg.norm(current.theta - known_minimum) <= SAME_MINIMUM * (
+            1.0 + np.linalg.norm(known_minimum)
+        ):
+            termination = "joined the minimum found from another start"
             iterations -= 1
             break
         scale = np.sqrt(np.sum(r * r, axis=0)) + 1e-300
