@@ -1,0 +1,390 @@
+"""Rank a sweep's models by validation FIT and log the lab's comparisons (§3.7) to a ranking run.
+
+    python -m maglev.rank [--experiment NAME] [--parent RUN_ID] [--structure S] [--tracking-uri URI]
+
+Reads the FINISHED model runs of a sweep (default: the latest; stale RUNNING runs are
+reaped first), ranks them by ``val_fit`` — ties go to the simpler model (fewer
+``n_params``) — and logs to a new run (``kind=ranking``, tag ``sweep_parent``; not a
+child, so the sweep's run counts stay those of its models): the full table and the top
+four (CSV and Markdown), best vs worst (Bode, pole-zero maps, residual correlations) and,
+for one structure, binary- vs uniform-input models (FIT table and plot, plus FIT of every
+such model on every one of their validation sets, so they are also compared on the same
+data).  Prints the top four.  ``RankingCallback`` does this and writes the report
+(:mod:`maglev.report`) at the end of every multirun.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import logging
+import math
+import sys
+import tempfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from hydra.experimental.callback import Callback  # noqa: E402
+from omegaconf import DictConfig  # noqa: E402
+
+from maglev.sweep_runs import Sweep, SweepError, dataset_configs, default_uri, load_model, load_sweep  # noqa: E402
+
+log = logging.getLogger("maglev.rank")
+
+TOP = 4
+TABLE_COLUMNS = ["rank", "name", "structure", "orders", "dataset", "input_class", "val_fit", "n_params",
+                 "val_dataset", "val_fit_sim", "aic", "whiteness_pvalue", "independence_pvalue", "run_id"]
+
+
+# ---------------------------------------------------------------------------- ranking
+def rank_table(runs: pd.DataFrame) -> pd.DataFrame:
+    """Runs ordered by ``val_fit`` (descending), ties to fewer ``n_params``, then by name; with ``rank``."""
+    t = runs.copy()
+    for col in TABLE_COLUMNS[1:]:
+        if col not in t:
+            t[col] = math.nan
+    t = t.sort_values(["val_fit", "n_params", "name"], ascending=[False, True, True], na_position="last",
+                      kind="mergesort").reset_index(drop=True)
+    t.insert(0, "rank", np.arange(1, len(t) + 1))
+    t["n_params"] = t["n_params"].round().astype("Int64")
+    return t[TABLE_COLUMNS + [c for c in t.columns if c not in TABLE_COLUMNS]]
+
+
+def validation_note(table: pd.DataFrame) -> str | None:
+    """A warning when the rows were validated on different data (their FITs are then not strictly comparable)."""
+    sets = list(dict.fromkeys(table["val_dataset"]))
+    if len(sets) <= 1:
+        return None
+    return f"validated on different data ({', '.join(sets)}): compare FIT within one validation set"
+
+
+def choose_structure(table: pd.DataFrame, structure: str | None = None) -> str | None:
+    """The structure of the binary-vs-uniform comparison: ``structure`` (checked), else the best-fitting
+    structure having both binary- and uniform-input runs (None when no structure has both)."""
+    classes = table.groupby("structure")["input_class"].agg(lambda s: set(s))
+    both = [s for s, c in classes.items() if {"binary", "uniform"} <= c]
+    if structure is not None:
+        if structure not in classes:
+            raise SweepError(f"--structure {structure}: the sweep has no FINISHED {structure} runs "
+                             f"(structures: {', '.join(classes.index)})")
+        if structure not in both:
+            raise SweepError(f"--structure {structure}: needs both binary- and uniform-input runs, has only "
+                             f"{', '.join(sorted(classes[structure]))} (structures with both: "
+                             f"{', '.join(both) or 'none'})")
+        return structure
+    if not both:
+        return None
+    return max(both, key=lambda s: (table.loc[table["structure"] == s, "val_fit"].max(), s))
+
+
+def comparison_table(table: pd.DataFrame, structure: str) -> pd.DataFrame:
+    """The ranked runs of one structure, by orders then input class (binary first)."""
+    t = table[table["structure"] == structure]
+    return t.sort_values(["orders", "input_class", "dataset"]).reset_index(drop=True)
+
+
+def common_validation(configs: dict[str, dict], runs: pd.DataFrame, models: dict) -> pd.DataFrame:
+    """FIT % of every run in ``runs`` on the validation data of every dataset in ``runs`` (rows: run names).
+
+    The lab compares input signals on the *same* validation data; each run was validated
+    on its own dataset's, so the others are rebuilt from the runs' logged configs
+    (``configs``: dataset name -> a run config).  A cell is NaN when the sampling periods differ.
+    """
+    from maglev.study.datasets import load
+    from maglev.validate import compare
+
+    names = sorted(set(runs["dataset"]))
+    data = {n: load(configs[n]["dataset"], configs[n]["data_dir"]) for n in names}
+    horizon = int(configs[names[0]]["study"]["val_horizon"])
+    out = pd.DataFrame(index=list(runs["name"]), columns=[f"{n}[val]" for n in names], dtype=float)
+    for _, row in runs.iterrows():
+        model = models[row["run_id"]]
+        for n in names:
+            if math.isclose(data[n].val.Ts, model.Ts, rel_tol=1e-9):
+                out.loc[row["name"], f"{n}[val]"] = compare(data[n].val, model, horizon)[0]
+    return out
+
+
+# ---------------------------------------------------------------------------- the result
+@dataclass
+class Ranking:
+    """A ranked sweep with the lab's comparisons; ``files`` are the artifacts (path -> text or PNG bytes)."""
+
+    sweep: Sweep
+    table: pd.DataFrame
+    structure: str | None
+    comparison: pd.DataFrame | None
+    common: pd.DataFrame | None
+    models: dict  # run id -> PolyModel (best, worst and the compared runs)
+    configs: dict  # dataset name -> the logged config of one of its runs
+    resids: dict  # run id -> ResidResult (best and worst)
+    notes: list[str] = field(default_factory=list)
+    files: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def top(self) -> pd.DataFrame:
+        return self.table.head(TOP)
+
+    @property
+    def best(self) -> pd.Series:
+        return self.table.iloc[0]
+
+    @property
+    def worst(self) -> pd.Series:
+        return self.table.iloc[-1]
+
+    @property
+    def ranked_hash(self) -> str:
+        """Identity of what was ranked (the run ids and the compared structure)."""
+        text = " ".join(sorted(self.table["run_id"])) + f" {self.structure}"
+        return hashlib.sha1(text.encode()).hexdigest()
+
+
+def resid_result(d: dict):
+    """A ``ResidResult`` (without the residual sequence) from a run's ``resid/resid.json``."""
+    from maglev.validate import ResidResult
+
+    return ResidResult(
+        e=np.array([]), auto_lags=np.asarray(d["auto_lags"]), auto_corr=np.asarray(d["auto_corr"]),
+        auto_band=float(d["auto_band"]), cross_lags=np.asarray(d["cross_lags"]),
+        cross_corr=np.asarray(d["cross_corr"]), cross_band=float(d["cross_band"]),
+        whiteness_stat=float(d["whiteness_stat"]), whiteness_dof=int(d["whiteness_dof"]),
+        whiteness_pvalue=float(d["whiteness_pvalue"]), independence_stat=float(d["independence_stat"]),
+        independence_dof=int(d["independence_dof"]), independence_pvalue=float(d["independence_pvalue"]),
+        auto_outside=float(d["auto_outside"]), cross_outside=float(d["cross_outside"]))
+
+
+def run_resid(sweep: Sweep, row: pd.Series, model):
+    """The run's residual analysis: its ``resid/resid.json``, else recomputed from its logged config."""
+    from maglev.sweep_runs import artifact_json, run_config
+
+    logged = artifact_json(sweep.client, row["run_id"], "resid/resid.json")
+    if logged is not None:
+        return resid_result(logged)
+    from maglev.study.datasets import load
+    from maglev.validate import resid
+
+    cfg = run_config(sweep.client, row["run_id"])
+    prep = load(cfg["dataset"], cfg["data_dir"])
+    return resid(prep.val, model, lags=int(cfg["study"]["resid_lags"]))
+
+
+def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> Ranking:
+    """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures."""
+    from maglev.rank_figures import best_worst_figures, comparison_figure, png
+
+    table = rank_table(sweep.runs)
+    chosen = choose_structure(table, structure)
+    notes = []
+    if chosen is None:
+        notes.append("no structure has both binary- and uniform-input runs: no binary vs uniform comparison")
+    comp = comparison_table(table, chosen) if chosen else None
+    wanted = [table.iloc[0], table.iloc[-1]] + ([r for _, r in comp.iterrows()] if comp is not None else [])
+    models = {r["run_id"]: load_model(sweep.client, r["run_id"]) for r in wanted}
+    best, worst = table.iloc[0], table.iloc[-1]
+    resids = {r["run_id"]: run_resid(sweep, r, models[r["run_id"]]) for r in (best, worst)}
+    configs, cross = {}, None
+    try:
+        configs = dataset_configs(sweep)
+        if comp is not None and common:
+            cross = common_validation(configs, comp, models)
+    except (SweepError, OSError, ValueError) as exc:  # e.g. a record no longer where it was
+        notes.append(f"datasets not rebuilt (no FIT on common validation data): {exc}")
+    ranking = Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=cross,
+                      models=models, configs=configs, resids=resids, notes=notes)
+    named = {k: replace(models[r["run_id"]], name=f"{k}: {r['name']}") for k, r in (("best", best), ("worst", worst))}
+    figs = best_worst_figures(named["best"], named["worst"], resids[best["run_id"]], resids[worst["run_id"]],
+                              best["val_fit"], worst["val_fit"])
+    ranking.files.update({f"best_vs_worst/{k}.png": png(f) for k, f in figs.items()})
+    if comp is not None:
+        ranking.files["binary_vs_uniform/fit.png"] = png(comparison_figure(comp, cross, chosen))
+    ranking.files.update(tables(ranking))
+    return ranking
+
+
+# ---------------------------------------------------------------------------- tables
+def markdown(df: pd.DataFrame, digits: int = 2) -> str:
+    """A GitHub Markdown table (floats with ``digits`` decimals, NaN as empty)."""
+    def cell(v) -> str:
+        if isinstance(v, (float, np.floating)):
+            return "" if math.isnan(v) else f"{v:.{digits}f}" if abs(v) < 1e6 else f"{v:.4g}"
+        return str(v).replace("|", "\\|")
+
+    head = "| " + " | ".join(map(str, df.columns)) + " |"
+    rule = "|" + "---|" * len(df.columns)
+    rows = ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    return "\n".join([head, rule, *rows]) + "\n"
+
+
+def tables(r: Ranking) -> dict[str, str]:
+    """The ranking's CSV and Markdown artifacts."""
+    short = TABLE_COLUMNS
+    out = {"ranking/table.csv": r.table.to_csv(index=False), "ranking/table.md": markdown(r.table[short]),
+           "ranking/top4.csv": r.top[short].to_csv(index=False)}
+    note = validation_note(r.top)
+    out["ranking/top4.md"] = markdown(r.top[short]) + (f"\nNote: the top four were {note}.\n" if note else "")
+    if r.comparison is not None:
+        cols = ["rank", "name", "dataset", "input_class", "orders", "val_fit", "val_fit_sim", "n_params",
+                "val_dataset"]
+        out["binary_vs_uniform/table.csv"] = r.comparison[cols].to_csv(index=False)
+        md = markdown(r.comparison[cols])
+        note = validation_note(r.comparison)
+        if note:
+            md += f"\nNote: these runs were {note}.\n"
+        if r.common is not None:
+            out["binary_vs_uniform/common_validation.csv"] = r.common.to_csv(index_label="model")
+            md += "\nFIT % of each model on each validation set:\n\n" + markdown(
+                r.common.reset_index(names="model"))
+        out["binary_vs_uniform/table.md"] = md
+    return out
+
+
+def top_text(r: Ranking) -> str:
+    """The top four as plain text for the terminal."""
+    lines = [f"Top {min(TOP, len(r.table))} of {len(r.table)} FINISHED runs of sweep {r.sweep.name!r} "
+             f"(parent {r.sweep.parent_id}), by one-step validation FIT:"]
+    for _, row in r.top.iterrows():
+        lines.append(f"  {row['rank']}. {row['val_fit']:7.2f} %  {row['name']:<32s}  "
+                     f"n_params={int(row['n_params']) if not pd.isna(row['n_params']) else '?'}  "
+                     f"val: {row['val_dataset']}")
+    note = validation_note(r.top)
+    if note:
+        lines.append(f"  note: {note}")
+    lines.append(f"  best {r.best['name']} ({r.best['val_fit']:.2f} %), worst {r.worst['name']} "
+                 f"({r.worst['val_fit']:.2f} %)")
+    if r.sweep.ignored:
+        lines.append("  ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(r.sweep.ignored.items())))
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------- the ranking run
+def log_ranking(r: Ranking) -> str:
+    """Log the ranking as a new FINISHED run (``kind=ranking``); tag the parent with its id; return the id."""
+    from maglev.study import tracking
+
+    client = r.sweep.client
+    tags = {"kind": "ranking", "sweep": r.sweep.name, "sweep_parent": r.sweep.parent_id,
+            "best_run": r.best["run_id"], "worst_run": r.worst["run_id"],
+            "compared_structure": r.structure or "", "ranked_hash": r.ranked_hash, **tracking.process_tags()}
+    run_id = client.create_run(r.sweep.experiment_id, run_name=f"ranking · {r.sweep.name}", tags=tags).info.run_id
+    metrics = {"n_ranked": len(r.table), "best_val_fit": r.best["val_fit"], "worst_val_fit": r.worst["val_fit"]}
+    metrics.update({f"top{i + 1}_val_fit": v for i, v in enumerate(r.top["val_fit"])})
+    metrics.update({f"ignored_{s.lower()}": n for s, n in r.sweep.ignored.items()})
+    tracking.log_batch(client, run_id, metrics=metrics)
+    log_files(client, run_id, r.files)
+    client.set_terminated(run_id, "FINISHED")
+    tracking.log_batch(client, r.sweep.parent_id, tags={"ranking_run": run_id})
+    return run_id
+
+
+def log_files(client, run_id: str, files: dict[str, Any]) -> None:
+    """Upload ``{artifact path: str or bytes}`` in one call."""
+    with tempfile.TemporaryDirectory(prefix="maglev-rank-") as tmp:
+        for rel, content in files.items():
+            path = Path(tmp) / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(content if isinstance(content, bytes) else content.encode())
+        client.log_artifacts(run_id, tmp)
+
+
+def ui_hint(sweep: Sweep, run_id: str) -> str:
+    """How to look at a run in the MLflow UI."""
+    if sweep.uri.startswith("sqlite:///"):
+        return (f"mlflow ui --backend-store-uri {sweep.uri}   # then open "
+                f"http://127.0.0.1:5000/#/experiments/{sweep.experiment_id}/runs/{run_id}")
+    return f"{sweep.uri.rstrip('/')}/#/experiments/{sweep.experiment_id}/runs/{run_id}"
+
+
+# ---------------------------------------------------------------------------- CLI and Hydra callback
+def add_store_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--tracking-uri", default=None,
+                   help="default: $MLFLOW_TRACKING_URI or sqlite:///<repo>/mlruns/mlflow.db")
+    p.add_argument("--experiment", default="maglev")
+    p.add_argument("--parent", default=None, help="the sweep's parent run id (default: the latest sweep)")
+    p.add_argument("--structure", default=None, choices=["arx", "armax", "oe", "bj"],
+                   help="structure of the binary vs uniform comparison (default: best with both classes)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m maglev.rank", description=__doc__.split("\n\n")[0])
+    add_store_args(p)
+    a = p.parse_args(argv)
+    try:
+        sweep = load_sweep(a.tracking_uri or default_uri(), a.experiment, a.parent)
+        ranking = compute(sweep, a.structure)
+        run_id = log_ranking(ranking)
+    except SweepError as exc:
+        print(f"maglev.rank: {exc}", file=sys.stderr)
+        return 2
+    print(top_text(ranking))
+    for note in ranking.notes:
+        print(f"  note: {note}")
+    print(f"ranking run {run_id}\n  {ui_hint(sweep, run_id)}")
+    return 0
+
+
+def parent_of_sweep(sweep_dir: str) -> str | None:
+    """The parent run id the sweep callback wrote to ``<sweep dir>/parent_run_id``, else its env variable."""
+    import os
+
+    from maglev.study.tracking import PARENT_ENV, PARENT_FILE
+
+    f = Path(sweep_dir) / PARENT_FILE
+    text = f.read_text().strip() if f.is_file() else ""
+    return text or os.environ.get(PARENT_ENV) or None
+
+
+class RankingCallback(Callback):
+    """Hydra callback: at the end of a multirun, rank the sweep, log the ranking run and write the report.
+
+    Order-independent with ``maglev.study.callback.SweepCallback`` (it reads the parent id
+    from the sweep dir); errors are logged, never raised, so a sweep's exit status is its jobs'.
+    """
+
+    def __init__(self, structure: str | None = None, report_dir: str | None = None) -> None:
+        self.structure = structure
+        self.report_dir = report_dir
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        from hydra.core.hydra_config import HydraConfig
+
+        from maglev.study.callback import task_config
+
+        HydraConfig.instance().set_config(config)
+        task = task_config(config)
+        parent = parent_of_sweep(str(config.hydra.sweep.dir))
+        if parent is None:
+            log.warning("ranking skipped: no parent run id in %s", config.hydra.sweep.dir)
+            return
+        try:
+            rank_and_report(task["tracking"]["uri"], task["tracking"]["experiment"], parent,
+                            self.structure, self.report_dir)
+        except SweepError as exc:
+            log.warning("ranking/report not made: %s", exc)
+        except Exception as exc:  # noqa: BLE001 — a report bug must not fail a finished sweep
+            log.exception("ranking/report failed: %s: %s", type(exc).__name__, exc)
+
+
+def rank_and_report(uri: str, experiment: str, parent: str | None, structure: str | None = None,
+                    report_dir: str | None = None) -> tuple[str, Path]:
+    """Rank, log the ranking run (reused if one ranked the same runs), write and log the report; print where."""
+    from maglev.report import ranking_run_for, write_report
+
+    sweep = load_sweep(uri, experiment, parent)
+    ranking = compute(sweep, structure)
+    run_id = ranking_run_for(ranking)
+    path = write_report(ranking, run_id, report_dir)
+    print(top_text(ranking))
+    print(f"ranking run: {run_id}\nreport:      {path}\nMLflow UI:   {ui_hint(sweep, run_id)}", flush=True)
+    return run_id, path
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,73 @@
+"""Figures of the ranking: best vs worst (Bode, pole-zero maps, residual correlations) and binary vs uniform.
+
+Drawn on ``Figure`` objects made without pyplot (safe headless), with the library's
+plot helpers (:mod:`maglev.plots`), and rendered to PNG bytes so the ranking run logs
+exactly the images the HTML report embeds.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from maglev.plots import plot_bode, plot_pzmap, plot_resid
+
+DPI = 90
+
+
+def png(fig: Figure, dpi: int = DPI) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def best_worst_figures(best, worst, resid_best, resid_worst, fit_best: float, fit_worst: float) -> dict:
+    """``bode``: both overlaid; ``pzmap``: both maps together; ``resid``: their correlations side by side."""
+    bode = plot_bode([best, worst])
+    pz = plot_pzmap([best, worst])
+    fig = Figure(figsize=(13, 6), layout="constrained")
+    axes = fig.subplots(2, 2)
+    for col, (result, model, fit) in enumerate(((resid_best, best, fit_best), (resid_worst, worst, fit_worst))):
+        plot_resid(result, ax=(axes[0, col], axes[1, col]))
+        axes[0, col].set_title(f"{model.name} (val FIT {fit:.2f} %)\n{axes[0, col].get_title()}",
+                               fontsize="medium")
+    return {"bode": bode, "pzmap": pz, "resid": fig}
+
+
+def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure: str) -> Figure:
+    """Validation FIT of the structure's runs by orders and dataset; and, if given, FIT on common data."""
+    fig = Figure(figsize=(12 if common is not None else 7, 4.5), layout="constrained")
+    axes = fig.subplots(1, 2 if common is not None else 1, squeeze=False)[0]
+    ax = axes[0]
+    orders = list(dict.fromkeys(comp["orders"]))
+    datasets = list(dict.fromkeys(comp.sort_values(["input_class", "dataset"])["dataset"]))
+    width = 0.8 / max(len(datasets), 1)
+    for j, ds in enumerate(datasets):
+        rows = comp[comp["dataset"] == ds].set_index("orders")
+        cls = rows["input_class"].iloc[0]
+        x = [i + (j - (len(datasets) - 1) / 2) * width for i, o in enumerate(orders) if o in rows.index]
+        y = [rows.loc[o, "val_fit"] for o in orders if o in rows.index]
+        bars = ax.bar(x, y, width, label=f"{ds} ({cls})", hatch="//" if cls == "binary" else None,
+                      edgecolor="k", linewidth=0.5)
+        ax.bar_label(bars, fmt="%.1f", fontsize="x-small")
+    low = float(np.nanmin(comp["val_fit"]))
+    ax.set_ylim(max(0.0, low - 5.0), 100.5)
+    ax.set_xticks(range(len(orders)), [f"{structure}{o}" for o in orders])
+    ax.set_ylabel("one-step FIT on own validation data (%)")
+    ax.set_title(f"{structure}: binary (hatched) vs uniform input", fontsize="medium")
+    ax.legend(loc="lower right", fontsize="small")
+    if common is not None:
+        ax2 = axes[1]
+        values = common.to_numpy(dtype=float)
+        image = ax2.imshow(values, cmap="viridis", aspect="auto")
+        for (i, k), v in np.ndenumerate(values):
+            ax2.text(k, i, "" if np.isnan(v) else f"{v:.1f}", ha="center", va="center", color="w",
+                     fontsize="small")
+        ax2.set_xticks(range(values.shape[1]), list(common.columns), rotation=20, ha="right")
+        ax2.set_yticks(range(values.shape[0]), list(common.index), fontsize="small")
+        ax2.set_title("FIT % of each model on each validation set", fontsize="medium")
+        fig.colorbar(image, ax=ax2, label="FIT %")
+    return fig

@@ -1,0 +1,135 @@
+"""The lab report of a sweep as one self-contained HTML page (figures embedded as base64 PNG).
+
+    python -m maglev.report [--experiment NAME] [--parent RUN_ID] [--structure S] [--tracking-uri URI] [--out FILE]
+
+Holds what EL2820 Lab 3 §5 asks for, each section with its numbers: the working region
+and its motivation, the three input signals and why (ranges vs the working region, α*
+from the spectra), the data used for estimation and validation, the structures and the
+motivation of their orders (loss/FPE/AIC vs order, near pole-zero cancellations), the
+top-four ranking, binary vs uniform input for one structure, and best vs worst.
+Written to ``reports/<sweep>.html`` (default) and logged as ``report/<sweep>.html`` to
+the sweep's ranking run — the latest one that ranked the same runs, else a new one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import html
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+from maglev import report_sections as sec  # noqa: E402
+from maglev.rank import Ranking, add_store_args, compute, log_files, log_ranking, ui_hint  # noqa: E402
+from maglev.sweep_runs import (  # noqa: E402
+    SweepError, artifact_bytes, artifact_json, default_uri, load_model, load_sweep)
+
+LAB_FIGURES = ("working_region.png", "rise_time.png", "output_spectrum.png", "alpha.png")
+CSS = """
+body{font-family:system-ui,sans-serif;max-width:1250px;margin:2em auto;padding:0 1em;color:#222;line-height:1.4}
+h1{font-size:1.6em} h2{border-bottom:2px solid #ccc;padding-bottom:.2em;margin-top:2em} h3{margin-bottom:.2em}
+table.t{border-collapse:collapse;font-size:.85em;margin:.6em 0} table.t td,table.t th{border:1px solid #ccc;
+padding:2px 6px;text-align:right} table.t th{background:#f2f2f2} figure{margin:.5em 0;display:inline-block}
+img{max-width:100%} .row{display:flex;flex-wrap:wrap;gap:1em} .row figure{flex:1 1 45%}
+figcaption{font-size:.85em;color:#555} .missing{color:#a00} nav a{margin-right:1em} .meta{color:#555;font-size:.9em}
+"""
+SECTIONS = [("working-region", "Working region"), ("inputs", "Input signals"), ("data", "Data"),
+            ("structures", "Structures and orders"), ("top4", "Top four"),
+            ("binary-vs-uniform", "Binary vs uniform"), ("best-vs-worst", "Best vs worst")]
+
+
+def lab_steps(ranking: Ranking) -> tuple[dict, dict]:
+    """The parent run's lab-level numbers (metrics and ``lab/lab.json``) and figures (name -> PNG)."""
+    sweep = ranking.sweep
+    lab = {k: v for k, v in sweep.parent.data.metrics.items() if k.startswith("lab.")}
+    lab.update(artifact_json(sweep.client, sweep.parent_id, "lab/lab.json") or {})
+    figures = {name: artifact_bytes(sweep.client, sweep.parent_id, f"lab/{name}") for name in LAB_FIGURES}
+    return lab, figures
+
+
+def build(ranking: Ranking, ranking_run: str) -> str:
+    """The report page for ``ranking`` (logged as run ``ranking_run``)."""
+    from maglev.study.datasets import load
+
+    sweep = ranking.sweep
+    lab, lab_png = lab_steps(ranking)
+    datasets = {n: load(c["dataset"], c["data_dir"]) for n, c in sorted(ranking.configs.items())}
+    if not datasets:
+        raise SweepError("cannot rebuild the sweep's datasets for the report: " + "; ".join(ranking.notes))
+    models = {**{rid: load_model(sweep.client, rid) for rid in ranking.table["run_id"]
+                 if rid not in ranking.models}, **ranking.models}
+    ts_used = sorted(set(float(t) for t in ranking.table["Ts"].dropna())) if "Ts" in ranking.table else []
+    tags = sweep.parent.data.tags
+    head = (f"<h1>System identification of the magnetic levitator — sweep {html.escape(sweep.name)}</h1>"
+            f"<p class='meta'>Parent run {sweep.parent_id}, ranking run {ranking_run}, experiment "
+            f"{html.escape(sweep.experiment)} in {html.escape(sweep.uri)}; git {tags.get('git_commit', '?')[:10]}"
+            f"{' (dirty)' if tags.get('git_dirty') == 'true' else ''}; generated "
+            f"{dt.datetime.now().isoformat(timespec='seconds')}.<br>MLflow UI: "
+            f"<code>{html.escape(ui_hint(sweep, ranking_run))}</code></p>"
+            "<nav>" + "".join(f"<a href='#{a}'>{t}</a>" for a, t in SECTIONS) + "</nav>")
+    body = [
+        sec.working_region(lab, lab_png, ts_used),
+        sec.input_signals(datasets, ranking.configs, lab, lab_png),
+        sec.data_amounts(ranking.table, datasets, ranking.configs),
+        sec.structures(ranking.table, models),
+        sec.top_four(ranking),
+        sec.binary_vs_uniform(ranking),
+        sec.best_vs_worst(ranking, models),
+    ]
+    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>maglev report: "
+            f"{html.escape(sweep.name)}</title><style>{CSS}</style></head><body>{head}{''.join(body)}"
+            "</body></html>\n")
+
+
+def default_dir() -> Path:
+    from maglev.study.schema import project_root
+
+    return Path(project_root()) / "reports"
+
+
+def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = None) -> Path:
+    """Write the page (``out``: a file, a directory, or None for ``reports/``) and log it to the ranking run."""
+    name = f"{ranking.sweep.name}.html"
+    path = Path(out) if out else default_dir()
+    if path.suffix.lower() != ".html":
+        path = path / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    page = build(ranking, ranking_run)
+    path.write_text(page, encoding="utf-8")
+    log_files(ranking.sweep.client, ranking_run, {f"report/{name}": page})
+    return path.resolve()
+
+
+def ranking_run_for(ranking: Ranking) -> str:
+    """The latest ranking run of the sweep that ranked exactly these runs; a new one if there is none."""
+    sweep = ranking.sweep
+    found = sweep.client.search_runs(
+        [sweep.experiment_id], order_by=["attributes.start_time DESC"], max_results=1,
+        filter_string=(f"tags.kind = 'ranking' and tags.sweep_parent = '{sweep.parent_id}' "
+                       f"and tags.ranked_hash = '{ranking.ranked_hash}'"))
+    return found[0].info.run_id if found else log_ranking(ranking)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m maglev.report", description=__doc__.split("\n\n")[0])
+    add_store_args(p)
+    p.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>.html)")
+    a = p.parse_args(argv)
+    try:
+        sweep = load_sweep(a.tracking_uri or default_uri(), a.experiment, a.parent)
+        ranking = compute(sweep, a.structure)
+        run_id = ranking_run_for(ranking)
+        path = write_report(ranking, run_id, a.out)
+    except SweepError as exc:
+        print(f"maglev.report: {exc}", file=sys.stderr)
+        return 2
+    print(f"report: {path}\nlogged to ranking run {run_id}\n  {ui_hint(sweep, run_id)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,334 @@
+"""The sections of the lab report (EL2820 Lab 3 §5), each as HTML stating its numbers next to its figures.
+
+Every function takes what the sweep logged (the ranking, the parent run's lab steps, the
+datasets rebuilt from the runs' configs) and returns an HTML fragment; :mod:`maglev.report`
+assembles them into one page.  Figures arrive as PNG bytes and are embedded as base64.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from collections.abc import Iterable
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+CANCEL_TOL = 0.05  # |pole - zero| below this (in the z-plane) flags a near pole-zero cancellation
+MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
+STRUCTURE_TEXT = {
+    "arx": "ARX  A(q) y = B(q) u + e: G and H share the poles of A; linear least squares, so cheap "
+           "and unique, but the noise model 1/A is forced.",
+    "armax": "ARMAX  A(q) y = B(q) u + C(q) e: adds a moving-average noise numerator C, so "
+             "coloured noise no longer biases G (PEM).",
+    "oe": "OE  y = B(q)/F(q) u + e: models G only, white output noise; G is unbiased even "
+          "when the noise is coloured, and one-step prediction equals simulation.",
+    "bj": "Box–Jenkins  y = B/F u + C/D e: independent dynamics and noise models, the most "
+          "flexible of the four (PEM).",
+}
+
+
+# ---------------------------------------------------------------------------- HTML helpers
+def esc(x) -> str:
+    return html.escape(str(x))
+
+
+def num(x, digits: int = 2) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "–"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    x = float(x)
+    return f"{x:.{digits}f}" if 1e-3 <= abs(x) < 1e6 or x == 0 else f"{x:.3g}"
+
+
+def img(data: bytes | None, alt: str) -> str:
+    if not data:
+        return f"<p class='missing'>(figure {esc(alt)} not available)</p>"
+    b64 = base64.b64encode(data).decode()
+    return (f"<figure><img alt='{esc(alt)}' src='data:image/png;base64,{b64}'>"
+            f"<figcaption>{esc(alt)}</figcaption></figure>")
+
+
+def table(df: pd.DataFrame, digits: int = 2) -> str:
+    return df.to_html(index=False, escape=True, na_rep="–", border=0, classes="t",
+                      float_format=lambda v: num(v, digits))
+
+
+def section(anchor: str, title: str, *parts: str) -> str:
+    return f"<section id='{anchor}'><h2>{esc(title)}</h2>\n" + "\n".join(parts) + "</section>\n"
+
+
+def para(text: str) -> str:
+    return f"<p>{text}</p>"
+
+
+def bullets(items: Iterable[str]) -> str:
+    return "<ul>" + "".join(f"<li>{i}</li>" for i in items) + "</ul>"
+
+
+def png(fig: Figure) -> bytes:
+    from maglev.rank_figures import png as render
+
+    return render(fig)
+
+
+# ---------------------------------------------------------------------------- analysis helpers
+def cancellations(model, tol: float = CANCEL_TOL) -> list[tuple[str, complex, complex, float]]:
+    """Near pole-zero cancellations of G (poles of AF vs zeros of B) and H (AD vs C): (which, pole, zero, |p-z|)."""
+    from maglev.polynomials import polymul
+
+    def roots(p: np.ndarray) -> np.ndarray:
+        p = np.trim_zeros(np.asarray(p, dtype=float), "f")
+        return np.roots(p) if p.size > 1 else np.array([], dtype=complex)
+
+    out = []
+    for which, zeros, poles in (("G", model.zeros(), model.poles()),
+                                ("H", roots(model.C), roots(polymul(model.A, model.D)))):
+        for p in poles:
+            for z in zeros:
+                d = abs(p - z)
+                if d < tol and (p.imag >= 0 or z.imag >= 0):  # one entry per conjugate pair
+                    out.append((which, complex(p), complex(z), float(d)))
+    return out
+
+
+def cz(z: complex) -> str:
+    return f"{z.real:.3f}{z.imag:+.3f}j" if abs(z.imag) > 1e-9 else f"{z.real:.3f}"
+
+
+# ---------------------------------------------------------------------------- sections
+def working_region(lab: dict, lab_png: dict, ts_used: list[float]) -> str:
+    if "lab.u_min" not in lab:
+        return section("working-region", "1. Working region and sampling period",
+                       para("The sweep's parent run has no lab-level steps (lab.enabled=false or they failed)."))
+    g = lab.get
+    facts = [
+        f"Staircase of the input within the plant's [0, 10] A ({esc(lab.get('staircase', 'staircase'))}): the "
+        f"widest range of levels where the stationary averages ȳ vs ū stay on a straight line (every point "
+        f"within 5 % of the ȳ range from the least-squares line, every neighbour-to-neighbour slope within "
+        f"0.5–1.5 times its slope) is <b>ū ∈ [{num(g('lab.u_min'))}, {num(g('lab.u_max'))}] A</b>: "
+        "the working region.",
+        f"Least-squares slope in the region: {num(g('lab.slope'), 4)} (output units per A); "
+        f"working point u* = (u_min + u_max)/2 = <b>{num(g('lab.u_star'))} A</b>.",
+        f"10–90 % rise time of steps inside the region: {num(g('lab.rise_time_samples'), 1)} samples = "
+        f"{num(1000 * g('lab.rise_time_s'), 1)} ms, so 4–10 samples per rise time means "
+        f"Ts ∈ [{num(1000 * g('lab.Ts_min'), 2)}, {num(1000 * g('lab.Ts_max'), 2)}] ms; decimation by "
+        f"{int(g('lab.decimation'))} (suggested).",
+        "Sampling period used by the models: " + ", ".join(f"{num(1000 * t, 2)} ms" for t in ts_used) + ".",
+    ]
+    return section("working-region", "1. Working region and sampling period", bullets(facts),
+                   "<div class='row'>" + img(lab_png.get("working_region.png"), "working region: ȳ vs ū")
+                   + img(lab_png.get("rise_time.png"), "averaged step response and rise time") + "</div>")
+
+
+def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict) -> str:
+    """``datasets``: name -> Prepared; ``configs``: name -> run config."""
+    u_lo, u_hi = lab.get("lab.u_min", math.nan), lab.get("lab.u_max", math.nan)
+    alpha_star = lab.get("lab.alpha_star", math.nan)
+    rows, why = [], []
+    for name, prep in datasets.items():
+        ds = configs[name]["dataset"]
+        trim = int(ds["preprocess"]["trim"])
+        u = prep.raw.u[trim:]
+        lo, hi = float(np.min(u)), float(np.max(u))
+        inside = lo >= u_lo - 1e-9 and hi <= u_hi + 1e-9
+        cover = (hi - lo) / (u_hi - u_lo) if u_hi > u_lo else math.nan
+        alpha = ds.get("alpha") if ds["input_class"] == "binary" else None
+        rows.append({"dataset": name, "class": ds["input_class"], "source": ds["source"], "u min (A)": lo,
+                     "u max (A)": hi, "mean u (A)": prep.u0, "std u (A)": float(np.std(u)),
+                     "inside working region": "yes" if inside else "NO", "share of region width": cover,
+                     "α": alpha})
+        text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): range [{num(lo)}, {num(hi)}] A, "
+                f"{num(100 * cover, 0)} % of the working region's width, mean {num(prep.u0)} A vs u* = "
+                f"{num(lab.get('lab.u_star'))} A; " + ("stays inside the working region" if inside else
+                                                    "<b>leaves the working region</b>"))
+        if alpha is not None:
+            text += (f"; switching probability α = {num(alpha)}" +
+                     (" = α*, the value matching the output's energy band" if math.isclose(alpha, alpha_star)
+                      else f" (α* = {num(alpha_star)})"))
+        why.append(text + ".")
+    shares = lab.get("alpha_shares", {})
+    spectrum = []
+    if "lab.band_low" in lab:
+        spectrum.append(
+            f"The output spectrum |FFT(y − ȳ)| of {esc(lab.get('spectrum_dataset', 'the base dataset'))} holds 80 % "
+            f"of its energy in ω ∈ [{num(lab['lab.band_low'], 3)}, {num(lab['lab.band_high'], 3)}] rad/sample "
+            f"([{num(lab['lab.band_low'] / math.pi, 3)}, {num(lab['lab.band_high'] / math.pi, 3)}]·π). Share of the "
+            "binary signal's power in that band for each α: "
+            + ", ".join(f"α = {a}: {num(100 * s, 1)} %" for a, s in shares.items())
+            + f"; the largest share gives <b>α* = {num(alpha_star)}</b>.")
+    return section("inputs", "2. Input signals", bullets(why), table(pd.DataFrame(rows)),
+                   bullets(spectrum) if spectrum else "",
+                   "<div class='row'>" + img(lab_png.get("output_spectrum.png"), "output spectrum and energy band")
+                   + img(lab_png.get("alpha.png"), "binary-signal spectra for the lab's α values") + "</div>")
+
+
+def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict) -> str:
+    rows = []
+    for name, prep in datasets.items():
+        pp = configs[name]["dataset"]["preprocess"]
+        est_s, val_s = prep.est.N * prep.est.Ts, prep.val.N * prep.val.Ts
+        ok = est_s >= MIN_EST_S and val_s >= MIN_VAL_S
+        rows.append({"dataset": name, "record (samples)": prep.raw.N, "raw Ts (ms)": 1000 * prep.raw.Ts,
+                     "trimmed": int(pp["trim"]), "decimation": int(pp["decimate"]), "Ts (ms)": 1000 * prep.data.Ts,
+                     "estimation": f"{prep.est.N} samples = {num(est_s)} s",
+                     "validation": f"{prep.val.N} samples = {num(val_s)} s ({esc(prep.val_name)})",
+                     "lab minimum (10 s / 7 s)": "met" if ok else "NOT met"})
+    per_model = table_[["rank", "name", "n_est", "n_val", "val_dataset"]].copy()
+    per_model["n_est"] = per_model["n_est"].astype("Int64")
+    per_model["n_val"] = per_model["n_val"].astype("Int64")
+    text = para("Each record: the start-up transient is trimmed, means removed, decimated to Ts, then split "
+                "— the first part estimates, the rest (never seen by the estimator) validates. Every model "
+                "is validated on the validation part of its own dataset (column val_dataset).")
+    return section("data", "3. Data for estimation and validation", text, table(pd.DataFrame(rows)),
+                   "<details><summary>Per model</summary>" + table(per_model) + "</details>")
+
+
+def orders_figure(runs: pd.DataFrame) -> Figure:
+    """Loss, AIC and validation FIT against the number of parameters, one row per structure."""
+    structures = list(dict.fromkeys(runs["structure"]))
+    fig = Figure(figsize=(12, 2.8 * len(structures)), layout="constrained")
+    axes = fig.subplots(len(structures), 3, squeeze=False)
+    for i, st in enumerate(structures):
+        part = runs[runs["structure"] == st]
+        for ds, g in part.groupby("dataset"):
+            g = g.sort_values("n_params")
+            for j, (col, log) in enumerate((("loss", True), ("aic", False), ("val_fit", False))):
+                axes[i, j].plot(g["n_params"], g[col], "o-", label=str(ds))
+                axes[i, j].set_yscale("log" if log else "linear")
+        for j, label in enumerate(("loss (estimation MSE)", "AIC", "val FIT %")):
+            axes[i, j].set_title(f"{st}: {label}", fontsize="medium")
+            axes[i, j].set_xlabel("free parameters")
+        axes[i, 0].legend(fontsize="x-small")
+    return fig
+
+
+def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> str:
+    """``models``: run id -> PolyModel for every ranked run."""
+    parts = []
+    for st in dict.fromkeys(table_["structure"]):
+        runs = table_[table_["structure"] == st]
+        rows, flagged = [], []
+        for _, r in runs.sort_values(["dataset", "n_params"]).iterrows():
+            cancel = cancellations(models[r["run_id"]], tol)
+            rows.append({"dataset": r["dataset"], "orders": r["orders"], "n_params": r["n_params"],
+                         "loss": r.get("loss"), "FPE": r.get("fpe"), "AIC": r.get("aic"), "val FIT %": r["val_fit"],
+                         "near cancellations": len(cancel)})
+            flagged += [f"{esc(r['name'])}: {w} pole {cz(p)} vs zero {cz(z)} (|p−z| = {num(d, 3)})"
+                        for w, p, z, d in cancel]
+        by_order = runs.groupby("orders").agg(aic=("aic", "mean"), fit=("val_fit", "mean"),
+                                              n=("n_params", "first"))
+        best_aic, best_fit = by_order["aic"].idxmin(), by_order["fit"].idxmax()
+        n_cancel = {o: sum(len(cancellations(models[i], tol)) for i in runs.loc[runs["orders"] == o, "run_id"])
+                    for o in by_order.index}
+        choice = (f"Orders tried: {', '.join(esc(o) for o in by_order.index)}. Mean AIC over the datasets is "
+                  f"lowest for <b>{esc(best_aic)}</b> ({num(by_order.loc[best_aic, 'aic'])}) and mean validation "
+                  f"FIT highest for <b>{esc(best_fit)}</b> ({num(by_order.loc[best_fit, 'fit'])} %); near pole-zero "
+                  "cancellations per order: " + ", ".join(f"{esc(o)}: {n}" for o, n in n_cancel.items()) + ". ")
+        choice += ("Both criteria agree." if best_aic == best_fit else
+                   "The criteria disagree: the extra parameters improve the estimation fit more than the "
+                   "validation fit, or vice versa.")
+        if flagged:
+            choice += " Near cancellations mean the order is higher than the data support."
+        parts.append(f"<h3>{esc(st.upper())}</h3>" + para(esc(STRUCTURE_TEXT.get(st, st))) + para(choice)
+                     + table(pd.DataFrame(rows), 4)
+                     + (f"<details><summary>{len(flagged)} near cancellation(s), |p−z| &lt; {tol}</summary>"
+                        + bullets(flagged) + "</details>" if flagged else ""))
+    intro = para(f"Each structure was fitted at every order of the sweep; the order is motivated by the "
+                 f"estimation loss, FPE and AIC against the number of parameters, the validation FIT, and "
+                 f"pole-zero pairs closer than {tol} in the z-plane (a cancellation: a superfluous order).")
+    return section("structures", "4. Model structures and orders", intro, *parts,
+                   img(png(orders_figure(table_)), "loss, AIC and validation FIT against the number of parameters"))
+
+
+def top_four(ranking) -> str:
+    from maglev.rank import validation_note
+
+    cols = ["rank", "name", "structure", "orders", "dataset", "val_fit", "n_params", "val_dataset"]
+    note = validation_note(ranking.top)
+    text = para(f"{len(ranking.table)} FINISHED models ranked by one-step-ahead FIT on validation data "
+                "(ties to fewer parameters)"
+                + (", ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(ranking.sweep.ignored.items()))
+                   if ranking.sweep.ignored else "") + ".")
+    lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])}, "
+             f"{r['n_params']} parameters" for _, r in ranking.top.iterrows()]
+    return section("top4", "5. Top four models", text, bullets(lines),
+                   para(f"<b>Note:</b> the top four were {esc(note)}.") if note else "",
+                   table(ranking.top[cols]),
+                   "<details><summary>All ranked models</summary>" + table(ranking.table[cols]) + "</details>")
+
+
+def binary_vs_uniform(ranking) -> str:
+    from maglev.rank import validation_note
+
+    if ranking.comparison is None:
+        return section("binary-vs-uniform", "6. Binary vs uniform input", para(esc("; ".join(ranking.notes))))
+    comp, st = ranking.comparison, ranking.structure
+    best = comp.loc[comp.groupby("input_class")["val_fit"].idxmax()].set_index("input_class")
+    lines = [f"Structure <b>{esc(st)}</b> (the best-fitting structure with both input classes, or --structure). "
+             f"Best binary-input model {esc(best.loc['binary', 'name'])}: FIT {num(best.loc['binary', 'val_fit'])} % "
+             f"on {esc(best.loc['binary', 'val_dataset'])}; best uniform-input model "
+             f"{esc(best.loc['uniform', 'name'])}: {num(best.loc['uniform', 'val_fit'])} % on "
+             f"{esc(best.loc['uniform', 'val_dataset'])}."]
+    note = validation_note(comp)
+    if note:
+        lines.append(f"These FITs were {esc(note)} — so the same models are also evaluated on every validation set:")
+    parts = [bullets(lines), table(comp[["rank", "name", "input_class", "orders", "val_fit", "val_fit_sim",
+                                         "n_params", "val_dataset"]])]
+    if ranking.common is not None:
+        common = ranking.common
+        cls = dict(zip(comp["name"], comp["input_class"]))
+        wins = []
+        for col in common.columns:
+            c = common[col].dropna()
+            if c.empty:
+                continue
+            winner = c.idxmax()
+            wins.append(f"on {esc(col)} the best is {esc(winner)} ({esc(cls[winner])}, {num(c.max())} %); best "
+                        f"binary {num(c[[n for n in c.index if cls[n] == 'binary']].max())} % vs best uniform "
+                        f"{num(c[[n for n in c.index if cls[n] == 'uniform']].max())} %")
+        parts += [table(common.reset_index(names="model")), bullets(wins)]
+    elif ranking.notes:
+        parts.append(para(esc("; ".join(ranking.notes))))
+    parts.append(img(ranking.files.get("binary_vs_uniform/fit.png"), f"{st}: FIT by input class"))
+    return section("binary-vs-uniform", f"6. Binary vs uniform input ({st})", *parts)
+
+
+def best_vs_worst(ranking, models_all: dict, tol: float = CANCEL_TOL) -> str:
+    b, w = ranking.best, ranking.worst
+    rb, rw = ranking.resids[b["run_id"]], ranking.resids[w["run_id"]]
+    keys = [("val_fit", "validation FIT % (one step)"), ("val_fit_sim", "validation FIT % (simulation)"),
+            ("n_params", "parameters"), ("whiteness_pvalue", "whiteness p-value"),
+            ("independence_pvalue", "independence p-value"), ("resid_auto_outside", "autocorr. lags outside 99 %"),
+            ("resid_cross_outside", "cross-corr. lags outside 99 %"), ("max_pole_radius", "largest |pole|"),
+            ("dcgain", "static gain"), ("g_h2_rel_err", "‖G − G₀‖ / ‖G₀‖ (simulator)")]
+    rows = [{"quantity": label, "best": num(b.get(k), 3), "worst": num(w.get(k), 3)} for k, label in keys
+            if k in b.index]
+    cb, cw = cancellations(models_all[b["run_id"]], tol), cancellations(models_all[w["run_id"]], tol)
+    rows.append({"quantity": f"near cancellations (|p−z| < {tol})", "best": len(cb), "worst": len(cw)})
+    findings = [f"Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on {esc(b['val_dataset'])}); "
+                f"worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT {num(w['val_fit'])} % on "
+                f"{esc(w['val_dataset'])})."]
+    for who, r, res in (("best", b, rb), ("worst", w, rw)):
+        findings.append(
+            f"Residuals of the {who}: {'white' if res.white else 'not white'} (p = {num(res.whiteness_pvalue, 3)}, "
+            f"{num(100 * res.auto_outside, 0)} % of autocorrelation lags outside the band), "
+            f"{'independent of' if res.independent else 'correlated with'} the input "
+            f"(p = {num(res.independence_pvalue, 3)}, {num(100 * res.cross_outside, 0)} % of lags outside).")
+    if rw.auto_outside > rb.auto_outside:
+        findings.append("The worst model leaves more structure in its residuals: its noise model (or its "
+                        "dynamics) misses part of the output that the best model predicts.")
+    if rw.cross_outside > rb.cross_outside:
+        findings.append("Its residuals also correlate more with the input: a sign that its G misses dynamics "
+                        "(or the delay), visible in the Bode plot as a different gain or phase.")
+    findings.append(f"Largest pole radius: best {num(b.get('max_pole_radius'), 3)}, worst "
+                    f"{num(w.get('max_pole_radius'), 3)}; static gain best {num(b.get('dcgain'), 3)}, worst "
+                    f"{num(w.get('dcgain'), 3)}.")
+    return section("best-vs-worst", "7. Best vs worst model", bullets(findings), table(pd.DataFrame(rows), 3),
+                   "<div class='row'>" + img(ranking.files.get("best_vs_worst/bode.png"), "Bode diagrams of G")
+                   + img(ranking.files.get("best_vs_worst/pzmap.png"), "pole-zero maps of G") + "</div>",
+                   img(ranking.files.get("best_vs_worst/resid.png"),
+                       "residual correlations, best (left) and worst (right)"))

@@ -1,0 +1,179 @@
+"""Read one sweep back from the MLflow store: its parent run, its FINISHED model runs, their artifacts.
+
+The ranking and the report only read what the study logged (schema in docs/tracking.md),
+so they work on any store — the local SQLite file or a tracking server — long after the
+sweep.  User mistakes (no store, unknown experiment, no sweep, a sweep without finished
+runs) raise :class:`SweepError` with a message saying what to do; the CLIs print it and
+exit non-zero instead of showing a traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
+
+TAG_COLUMNS = ("dataset", "input_class", "data_source", "structure", "orders", "val_dataset", "sweep")
+
+
+class SweepError(RuntimeError):
+    """A user-facing problem with the store or the sweep (printed without a traceback)."""
+
+
+def default_uri() -> str:
+    """``$MLFLOW_TRACKING_URI``, else the project's local store ``sqlite:///<repo>/mlruns/mlflow.db``."""
+    from maglev.study.schema import project_root
+
+    return os.environ.get("MLFLOW_TRACKING_URI", f"sqlite:///{project_root()}/mlruns/mlflow.db")
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A sweep's parent run, its FINISHED model runs (one row each) and the children ignored by status."""
+
+    client: object  # mlflow.MlflowClient
+    uri: str
+    experiment_id: str
+    experiment: str
+    parent: object  # mlflow.entities.Run
+    runs: pd.DataFrame
+    ignored: dict[str, int]  # status -> number of model runs not FINISHED
+
+    @property
+    def parent_id(self) -> str:
+        return self.parent.info.run_id
+
+    @property
+    def name(self) -> str:
+        return self.parent.data.tags.get("sweep") or self.parent.info.run_name or self.parent_id[:8]
+
+
+def open_store(uri: str, experiment: str):
+    """(client, experiment id) of an existing store and experiment; never creates either."""
+    from maglev.study.tracking import sqlite_path
+
+    db = sqlite_path(uri)
+    if db is not None and not db.is_file():
+        raise SweepError(f"no MLflow store at {db}; run a sweep first (python study.py -m +experiment=lab) "
+                         "or pass --tracking-uri")
+    from mlflow import MlflowClient
+    from mlflow.exceptions import MlflowException
+
+    client = MlflowClient(tracking_uri=uri)
+    try:
+        exp = client.get_experiment_by_name(experiment)
+        known = [e.name for e in client.search_experiments()] if exp is None else []
+    except MlflowException as exc:
+        raise SweepError(f"cannot read the MLflow store {uri}: {exc.message}") from None
+    if exp is None:
+        raise SweepError(f"no experiment {experiment!r} in {uri} (experiments: {', '.join(known) or 'none'})")
+    return client, exp.experiment_id
+
+
+def find_parent(client, experiment_id: str, parent_id: str | None = None):
+    """The sweep's parent run: ``parent_id`` if given (must be a ``kind=sweep`` run), else the latest sweep."""
+    from mlflow.exceptions import MlflowException
+
+    if parent_id:
+        try:
+            run = client.get_run(parent_id)
+        except MlflowException:
+            raise SweepError(f"no run {parent_id!r} in the store") from None
+        if run.info.experiment_id != experiment_id or run.data.tags.get("kind") != "sweep":
+            raise SweepError(f"run {parent_id} is not a sweep parent run (kind=sweep) of this experiment")
+        return run
+    runs = client.search_runs([experiment_id], filter_string="tags.kind = 'sweep'",
+                              order_by=["attributes.start_time DESC"], max_results=1)
+    if not runs:
+        raise SweepError("the experiment has no sweep yet; run one with python study.py -m +experiment=lab")
+    return runs[0]
+
+
+def model_rows(runs: list) -> pd.DataFrame:
+    """One row per model run: run_id, name, status, the schema's tags and every metric."""
+    rows = []
+    for r in runs:
+        row = {"run_id": r.info.run_id, "name": r.info.run_name, "status": r.info.status}
+        row.update({k: r.data.tags.get(k, "") for k in TAG_COLUMNS})
+        row.update(r.data.metrics)
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def load_sweep(uri: str, experiment: str, parent_id: str | None = None, reap: bool = True) -> Sweep:
+    """The sweep ``parent_id`` (default: the latest) with its FINISHED model runs, after reaping stale runs."""
+    client, exp_id = open_store(uri, experiment)
+    if reap:
+        from maglev.study.reap import reap as reap_runs
+
+        reap_runs(client, [exp_id])
+    parent = find_parent(client, exp_id, parent_id)
+    kids = client.search_runs(
+        [exp_id], max_results=50000,
+        filter_string=f"tags.`mlflow.parentRunId` = '{parent.info.run_id}' and tags.kind = 'model'")
+    finished = [r for r in kids if r.info.status == "FINISHED"]
+    ignored: dict[str, int] = {}
+    for r in kids:
+        if r.info.status != "FINISHED":
+            ignored[r.info.status] = ignored.get(r.info.status, 0) + 1
+    name = parent.data.tags.get("sweep") or parent.info.run_name
+    if not finished:
+        detail = ", ".join(f"{n} {s}" for s, n in sorted(ignored.items())) or "no model runs at all"
+        raise SweepError(f"sweep {name!r} (parent run {parent.info.run_id}) has no FINISHED model runs "
+                         f"({detail})")
+    return Sweep(client=client, uri=uri, experiment_id=exp_id, experiment=experiment, parent=parent,
+                 runs=model_rows(finished), ignored=ignored)
+
+
+def artifact_bytes(client, run_id: str, path: str) -> bytes | None:
+    """The content of one artifact, or None when the run has no such artifact."""
+    from mlflow.exceptions import MlflowException
+
+    with tempfile.TemporaryDirectory(prefix="maglev-rank-") as tmp:
+        try:
+            local = client.download_artifacts(run_id, path, tmp)
+        except (MlflowException, OSError):
+            return None
+        return Path(local).read_bytes() if Path(local).is_file() else None
+
+
+def artifact_json(client, run_id: str, path: str) -> dict | None:
+    raw = artifact_bytes(client, run_id, path)
+    return None if raw is None else json.loads(raw)
+
+
+def run_config(client, run_id: str) -> dict:
+    """The resolved config a run logged (``config/config.yaml``), with the study's schema re-applied."""
+    from omegaconf import OmegaConf
+
+    from maglev.study.job import plain_config
+
+    raw = artifact_bytes(client, run_id, "config/config.yaml")
+    if raw is None:
+        raise SweepError(f"run {run_id} has no config/config.yaml artifact")
+    return plain_config(OmegaConf.create(raw.decode()))
+
+
+def load_model(client, run_id: str):
+    """The run's fitted ``PolyModel`` (``model/model.json``)."""
+    from maglev.models import PolyModel
+
+    raw = artifact_bytes(client, run_id, "model/model.json")
+    if raw is None:
+        raise SweepError(f"run {run_id} has no model/model.json artifact")
+    return PolyModel.from_json(raw.decode())
+
+
+def dataset_configs(sweep: Sweep) -> dict[str, dict]:
+    """One logged run config per dataset of the sweep (enough to rebuild that dataset)."""
+    out: dict[str, dict] = {}
+    for name, group in sweep.runs.groupby("dataset", sort=True):
+        out[str(name)] = run_config(sweep.client, group["run_id"].iloc[0])
+    return out

@@ -1,0 +1,146 @@
+"""End to end: a small lab sweep with the ranking callback into a tmp store, then the report.
+
+The sweep runs as a subprocess like tests/test_study.py (absolute tracking.uri in
+tmp_path); the callback is added on the command line, so the test does not depend on
+conf/config.yaml wiring it.  Expected numbers are read from the store, not copied from output.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tests.test_study import REPO, TINY, all_runs, run_study
+
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
+SECTION_IDS = ("working-region", "inputs", "data", "structures", "top4", "binary-vs-uniform", "best-vs-worst")
+
+
+@pytest.fixture(scope="module")
+def lab_sweep(tmp_path_factory):
+    """The lab experiment reduced to ARX and OE (12 runs), ranked and reported by the callback.
+
+    ``++`` adds the callback, or overrides it once conf/config.yaml wires it as ``maglev_rank``.
+    """
+    store = tmp_path_factory.mktemp("report")
+    reports = store / "reports"
+    proc = run_study(store, "-m", "+experiment=lab", "structure=arx,oe", *TINY,
+                     "++hydra.callbacks.maglev_rank._target_=maglev.rank.RankingCallback",
+                     f"++hydra.callbacks.maglev_rank.report_dir={reports}")
+    return store, reports, proc
+
+
+def ranked(runs) -> list:
+    """FINISHED model runs by val_fit, ties to fewer parameters (the lab's ranking, done independently)."""
+    kids = [r for r in runs if r.data.tags.get("kind") == "model" and r.info.status == "FINISHED"]
+    return sorted(kids, key=lambda r: (-r.data.metrics["val_fit"], r.data.metrics["n_params"], r.info.run_name))
+
+
+def test_sweep_ends_with_ranking_run_and_prints_where_things_are(lab_sweep):
+    store, reports, proc = lab_sweep
+    out = proc.stdout
+    assert "ranking run:" in out and f"report:      {reports / 'lab.html'}" in out
+    assert f"mlflow ui --backend-store-uri sqlite:///{store}/mlflow.db" in out
+    client, _, runs = all_runs(store)
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
+    assert ranking.data.tags["sweep_parent"] == parent.info.run_id
+    order = ranked(runs)
+    assert ranking.data.tags["best_run"] == order[0].info.run_id
+    assert ranking.data.tags["worst_run"] == order[-1].info.run_id
+    top_lines = [ln for ln in out.splitlines() if re.match(r"\s+[1-4]\.\s", ln)]
+    assert [next(r.info.run_name for r in order if r.info.run_name in ln) for ln in top_lines] == \
+        [r.info.run_name for r in order[:4]]
+    paths = {a.path for d in ("ranking", "best_vs_worst", "binary_vs_uniform", "report")
+             for a in client.list_artifacts(ranking.info.run_id, d)}
+    assert {"ranking/table.csv", "ranking/top4.md", "best_vs_worst/bode.png", "best_vs_worst/pzmap.png",
+            "best_vs_worst/resid.png", "binary_vs_uniform/fit.png", "binary_vs_uniform/common_validation.csv",
+            "report/lab.html"} <= paths
+
+
+def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
+    store, reports, _ = lab_sweep
+    page = (reports / "lab.html").read_text()
+    for anchor in SECTION_IDS:
+        assert f"<section id='{anchor}'>" in page, anchor
+    client, _, runs = all_runs(store)
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep").data.metrics
+    order = ranked(runs)
+    sections = dict(re.findall(r"<section id='([^']+)'>(.*?)</section>", page, flags=re.S))
+    wr = sections["working-region"]
+    assert f"[{parent['lab.u_min']:.2f}, {parent['lab.u_max']:.2f}] A" in wr
+    assert f"u* = (u_min + u_max)/2 = <b>{parent['lab.u_star']:.2f} A" in wr
+    assert f"α* = {parent['lab.alpha_star']:.2f}" in sections["inputs"]
+    for ds in ("uniform_narrow", "uniform_wide", "binary_a025"):
+        assert ds in sections["inputs"] and ds in sections["data"]
+    m = order[0].data.metrics
+    assert f"{int(m['n_est'])} samples = {m['n_est'] * m['Ts']:.2f} s" in sections["data"]
+    for st in ("ARX", "OE"):
+        assert f"<h3>{st}</h3>" in sections["structures"]
+    aic = order[0].data.metrics["aic"]
+    assert f"{aic:.4f}" in sections["structures"]
+    top = sections["top4"]
+    positions = [top.index(f"<b>{r.info.run_name}</b>: FIT {r.data.metrics['val_fit']:.2f} %") for r in order[:4]]
+    assert positions == sorted(positions)
+    assert "binary" in sections["binary-vs-uniform"] and "uniform" in sections["binary-vs-uniform"]
+    bw = sections["best-vs-worst"]
+    assert f"Best <b>{order[0].info.run_name}</b>" in bw and f"worst <b>{order[-1].info.run_name}</b>" in bw
+    assert f"rank {len(order)}, FIT {order[-1].data.metrics['val_fit']:.2f} %" in bw
+
+
+def test_report_is_self_contained(lab_sweep):
+    _, reports, _ = lab_sweep
+    page = (reports / "lab.html").read_text()
+    srcs = re.findall(r"<img [^>]*src='([^']*)'", page)
+    assert len(srcs) == 9  # 4 lab steps, orders, binary vs uniform, 3 best vs worst
+    assert all(s.startswith("data:image/png;base64,") for s in srcs)
+    assert "<link" not in page and "<script" not in page and "(figure" not in page  # no missing figures
+
+
+def test_report_cli_reuses_the_ranking_run_of_the_same_runs(lab_sweep, tmp_path):
+    store, _, _ = lab_sweep
+    out = tmp_path / "r.html"
+    proc = subprocess.run([sys.executable, "-m", "maglev.report", "--tracking-uri", f"sqlite:///{store}/mlflow.db",
+                           "--out", str(out)], capture_output=True, text=True, timeout=300, cwd=REPO)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert out.is_file() and "<section id='best-vs-worst'>" in out.read_text()
+    _, _, runs = all_runs(store)
+    assert len([r for r in runs if r.data.tags.get("kind") == "ranking"]) == 1
+
+
+def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tmp_path):
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.skip("chromium not installed (apt-get install -y chromium)")
+    _, reports, _ = lab_sweep
+    probe = ("<script>window.addEventListener('load', () => { const im = [...document.images]; "
+             "document.title = 'broken=' + im.filter(i => !i.complete || i.naturalWidth === 0).length "
+             "+ ' total=' + im.length; });</script>")
+    page = tmp_path / "probe.html"
+    page.write_text((reports / "lab.html").read_text().replace("</body>", probe + "</body>"))
+    proc = subprocess.run(
+        [chromium, "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
+         "--virtual-time-budget=10000", "--dump-dom", page.as_uri()],
+        capture_output=True, text=True, timeout=120)
+    title = re.search(r"<title>(.*?)</title>", proc.stdout)
+    assert title, proc.stderr[-2000:]
+    broken, total = map(int, re.fullmatch(r"broken=(\d+) total=(\d+)", title.group(1)).groups())
+    assert broken == 0 and total == 9
+
+
+def test_near_pole_zero_cancellations_are_flagged():
+    from maglev.models import PolyModel
+    from maglev.report_sections import cancellations
+
+    # G = (q^-2 - 0.5 q^-3) / (1 - 0.52 q^-1)(1 - 0.9 q^-1): zero 0.5 vs pole 0.52 cancel, 0.9 does not
+    F = np.convolve([1, -0.52], [1, -0.9])
+    m = PolyModel(A=[1.0], B=[0, 0, 1.0, -0.5], C=[1.0], D=[1.0], F=F, nk=2, Ts=0.01, structure="oe")
+    [(which, pole, zero, dist)] = cancellations(m, tol=0.05)
+    assert which == "G" and abs(pole - 0.52) < 1e-9 and abs(zero - 0.5) < 1e-9 and abs(dist - 0.02) < 1e-9
+    assert cancellations(m, tol=0.01) == []
