@@ -29,6 +29,8 @@ def run_study(store: Path, *args: str, timeout: float = 300, extra_env: dict | N
     cmd = [sys.executable, str(REPO / "study.py"), *args,
            f"tracking.uri=sqlite:///{store}/mlflow.db", f"tracking.artifact_location={store}/artifacts",
            f"hydra.run.dir={store}/outputs", f"hydra.sweep.dir={store}/multirun"]
+    if not any("maglev_rank" in a for a in args):  # ranking + report are tested in test_report.py
+        cmd.append("~hydra.callbacks.maglev_rank")
     env = {**os.environ, **(extra_env or {})}
     env.pop("MLFLOW_TRACKING_URI", None)
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=timeout, env=env)
@@ -98,6 +100,27 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
                           "model/model.json", "resid/resid.json"} <= paths
         names.add(r.info.run_name)
     assert "oe[2 2 2] · binary_a025" in names
+
+
+def test_sweep_logs_progress_as_jobs_done_of_total(sweep):
+    _, _, proc = sweep
+    out = proc.stdout + proc.stderr
+    for k in range(1, 5):
+        assert f"[{k}/4] " in out, out[-2000:]
+
+
+def test_sweep_size_is_the_product_of_sweeper_params_and_command_line_sweeps():
+    from omegaconf import OmegaConf
+
+    from maglev.study.callback import sweep_size
+
+    def cfg(params, task):
+        return OmegaConf.create({"hydra": {"sweeper": {"params": params}, "overrides": {"task": task}}})
+
+    assert sweep_size(cfg({"dataset": "a,b,c", "structure": "arx,oe"}, ["+experiment=lab"])) == 6
+    # the command line replaces a sweeper param of the same key; range() stops before its end
+    assert sweep_size(cfg({"dataset": "a,b,c"}, ["dataset=a", "structure.order=range(2,5)"])) == 3
+    assert sweep_size(cfg({}, ["x=1"])) == 1
 
 
 def test_model_and_resid_artifacts_are_loadable(sweep):

@@ -49,6 +49,29 @@ def sweep_id(config: DictConfig, task: dict) -> str:
     return hashlib.sha1(text.encode()).hexdigest()
 
 
+def sweep_size(config: DictConfig) -> int | None:
+    """How many jobs the sweep launches: the product of its sweep sizes (None if unknown).
+
+    The basic and joblib sweepers take the cartesian product of the sweeper params and
+    the command-line sweeps (the command line wins for a key given twice).
+    """
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    raw = config.hydra.sweeper.get("params") or {}
+    specs = {str(k): f"{k}={v}" for k, v in raw.items()}
+    parser = OverridesParser.create()
+    for text in config.hydra.overrides.task:
+        specs[parser.parse_override(text).key_or_group] = text
+    size = 1
+    for override in parser.parse_overrides(list(specs.values())):
+        if override.is_sweep_override():
+            try:
+                size *= len(list(override.sweep_string_iterator()))
+            except Exception:  # noqa: BLE001 — e.g. glob sweeps need the config to expand
+                return None
+    return size
+
+
 class SweepCallback(Callback):
     def __init__(self) -> None:
         self.client = None
@@ -85,6 +108,9 @@ class SweepCallback(Callback):
         sweep_dir.mkdir(parents=True, exist_ok=True)
         (sweep_dir / tracking.PARENT_FILE).write_text(self.parent)
         os.environ[tracking.PARENT_ENV] = self.parent
+        size = sweep_size(config)
+        if size:
+            os.environ[tracking.SIZE_ENV] = str(size)
         atexit.register(self._abort)
         log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
                  "new" if self.fresh else "resumed", task["tracking"]["uri"])
@@ -118,6 +144,7 @@ class SweepCallback(Callback):
                            metrics={f"runs_{s.lower()}": n for s, n in counts.items()})
         self.client.set_terminated(self.parent, "FINISHED")
         os.environ.pop(tracking.PARENT_ENV, None)
+        os.environ.pop(tracking.SIZE_ENV, None)
         summary = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "no runs"
         log.info("sweep done: %s under parent run %s", summary, self.parent)
         if counts.get("FAILED"):

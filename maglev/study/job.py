@@ -80,6 +80,14 @@ def hydra_context() -> dict:
             "sweep_dir": hc.sweep.dir if multirun else None, "job_num": hc.job.num if multirun else None}
 
 
+def progress(ctx: dict) -> str:
+    """``[k/total] `` for the k-th job of a sweep of known size (``[k] `` if unknown), else ''."""
+    if ctx.get("job_num") is None:
+        return ""
+    total = os.environ.get(tracking.SIZE_ENV)
+    return f"[{ctx['job_num'] + 1}/{total}] " if total else f"[{ctx['job_num'] + 1}] "
+
+
 def parent_run_id(ctx: dict) -> str | None:
     """The sweep's parent run: from the file the sweep callback wrote, else the environment."""
     if ctx.get("sweep_dir"):
@@ -115,15 +123,15 @@ def run(cfg: DictConfig) -> float | None:
     plain = plain_config(cfg)
     check(plain)
     chash = tracking.config_hash(plain)
-    label = run_label(plain)
+    ctx = hydra_context()
+    label = progress(ctx) + run_label(plain)
     client, exp_id = tracking.connect(plain["tracking"])
     if plain["study"]["skip_finished"]:
         done = tracking.finished_run(client, exp_id, chash)
         if done:
             log.info("skip %s: run %s with config hash %s is FINISHED", label, done, chash[:10])
             return None
-    ctx = hydra_context()
-    run_info = client.create_run(exp_id, run_name=label,
+    run_info = client.create_run(exp_id, run_name=run_label(plain),
                                  tags=run_tags(plain, chash, ctx, parent_run_id(ctx))).info
     run_id = run_info.run_id
     try:

@@ -35,6 +35,7 @@ from maglev.study.schema import ORDER_KEYS, project_root  # noqa: E402
 HASHED_STUDY_KEYS = ("val_horizon", "resid_lags", "true_plant")
 PARENT_FILE = "parent_run_id"
 PARENT_ENV = "MAGLEV_PARENT_RUN_ID"
+SIZE_ENV = "MAGLEV_SWEEP_SIZE"  # number of jobs in the running sweep, for progress
 
 
 # ---------------------------------------------------------------------------- store and experiment
