@@ -54,6 +54,17 @@ def test_every_dataset_composes(name):
         check(c)
 
 
+@pytest.mark.parametrize("name", SIM)
+def test_simulated_datasets_give_the_lab_minimum_of_estimation_and_validation_data(name):
+    """Lab §3.4: at least 10 s of estimation and 7 s of validation data."""
+    from maglev.study.datasets import load
+
+    c = task(cfg_for([f"dataset={name}"]))
+    prepared = load(c["dataset"], c["data_dir"])
+    assert prepared.est.N * prepared.est.Ts >= 10.0
+    assert prepared.val.N * prepared.val.Ts >= 7.0
+
+
 def test_real_file_variables_follow_the_refdata_readme():
     d1 = task(cfg_for(["dataset=real_binary_signal_1"]))["dataset"]
     assert (d1["u"], d1["y"], d1["Ts"]) == ("ub", "yb", 0.001)

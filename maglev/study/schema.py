@@ -74,7 +74,7 @@ class SimDatasetCfg:
     low: float = MISSING  # A
     high: float = MISSING  # A
     alpha: Optional[float] = None  # switching probability (binary only)
-    duration_s: float = 20.0
+    duration_s: float = 24.0  # lab §3.4: >= 10 s estimation and 7 s validation after trimming
     seed: int = 0
     Ts: float = 0.001
     preprocess: PreprocessCfg = field(default_factory=PreprocessCfg)
