@@ -113,7 +113,7 @@ class ArmaxCfg:
     nc: int = "${.order}"  # type: ignore[assignment]
     nk: int = 1
     initial_condition: InitialCondition = InitialCondition.auto
-    max_iterations: int = 100
+    max_iterations: int = 200
 
 
 @dataclass
@@ -124,7 +124,7 @@ class OeCfg:
     nf: int = "${.order}"  # type: ignore[assignment]
     nk: int = 1
     initial_condition: InitialCondition = InitialCondition.auto
-    max_iterations: int = 100
+    max_iterations: int = 200
 
 
 @dataclass
@@ -137,7 +137,7 @@ class BjCfg:
     nf: int = "${.order}"  # type: ignore[assignment]
     nk: int = 1
     initial_condition: InitialCondition = InitialCondition.auto
-    max_iterations: int = 100
+    max_iterations: int = 200
 
 
 ORDER_KEYS = {"arx": ("na", "nb", "nk"), "armax": ("na", "nb", "nc", "nk"),
