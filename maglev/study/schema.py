@@ -26,6 +26,8 @@ from typing import Any, Optional
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
+from maglev.structure import ORDER_NAMES
+
 
 def project_root() -> str:
     """``$MAGLEV_ROOT``, else the checkout holding ``study.py`` and ``conf/``, else the cwd."""
@@ -140,8 +142,7 @@ class BjCfg:
     max_iterations: int = 200
 
 
-ORDER_KEYS = {"arx": ("na", "nb", "nk"), "armax": ("na", "nb", "nc", "nk"),
-              "oe": ("nb", "nf", "nk"), "bj": ("nb", "nc", "nd", "nf", "nk")}
+ORDER_KEYS = {name: ORDER_NAMES[name] for name in ("arx", "armax", "oe", "bj")}  # MATLAB order vectors
 
 
 @dataclass
