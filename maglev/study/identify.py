@@ -19,6 +19,7 @@ from maglev.estimate import estimate
 from maglev.models import PolyModel
 from maglev.study.datasets import Prepared, load
 from maglev.study.schema import ORDER_KEYS
+from maglev.threads import single_threaded_blas
 from maglev.validate import ResidResult, compare, resid
 
 TIMING_METRICS = ("fit_seconds",)  # not reproducible; every other metric is
@@ -47,6 +48,7 @@ def run_label(cfg: dict) -> str:
     return f"{cfg['structure']['name']}{orders_string(cfg['structure'])} · {cfg['dataset']['name']}"
 
 
+@single_threaded_blas  # same numbers, bit for bit, whichever launcher or process runs it
 def identify(cfg: dict, figures: bool = True) -> RunOutput:
     """Estimate the configured structure on the dataset's estimation part and validate it."""
     st, study = cfg["structure"], cfg["study"]
