@@ -13,20 +13,24 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
 * coil force on the lower magnet ``Fc = I / (a (z + b)^n)`` (repulsive, linear in
   the current), and a weaker pull on the upper magnet ``Fa = kappa I / (a (h + b)^n)``;
 * magnet-magnet repulsion ``Fm = c / (h - z + d)^4`` (Gilbert far field with an offset);
-* gravity, viscous friction ``gamma v`` and optional Coulomb (dry) friction;
+* gravity, viscous friction ``gamma v`` and dry friction of each bushing on the glass
+  rod: Coulomb level + a Stribeck (velocity-weakening) peak, tanh-regularised over a
+  creep speed ``v_creep`` (``(Fc + Fs exp(-(v/vs)^2)) tanh(v/v_creep)``), which makes
+  small motions heavily damped and large ones lightly damped (the rig's amplitude
+  dependence, notes §4.6);
 * the current regulator saturates at ``i_sat`` (≈ 4.06 A on the rig) and, as an
   option, the lab's logging quirk "command >= 10 A is written as 0 A";
 * a pure input delay; a laser reading ``y = y_off + h`` plus sensor noise (white +
   a narrow mains-ripple line) quantised to the ADC step; optional process (force) noise.
 
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
-6.6-6.8 ms of physical time (notes §5).  By default the simulator reproduces the
+6-7 ms of physical time (notes §5).  By default the simulator reproduces the
 records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
-of physics with ``time_scale = t_phys / 1 ms`` (6.575, fitted by ``maglev.calibrate``),
-so a 60 s-labelled record covers about 395 s of physics and the transients have the
-real records' length in samples.  With ``physical_time=True`` the simulator is
-physically honest (``Ts`` of physics per sample), and its transients are about 6.6
-times longer in samples.
+of physics with ``time_scale = t_phys / 1 ms`` (5.701, fitted by ``maglev.calibrate``
+together with the friction), so a 60 s-labelled record covers about 340 s of physics
+and the transients have the real records' length in samples.  With
+``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
+sample), and its transients are about 6 times longer in samples.
 """
 
 from __future__ import annotations
@@ -59,29 +63,34 @@ class LevitatorParams:
     kappa: float = 0.1965  # coil pull on the upper magnet relative to the push on the lower one
     c: float = 2.21e4  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
     d: float = 4.2  # cm, offset of the repulsion law
-    gamma_lower: float = 10.79  # N s/m, viscous friction of the lower magnet
-    gamma_upper: float = 1.009  # N s/m, viscous friction of the upper magnet
-    coulomb_lower: float = 0.0  # N, dry friction of the lower magnet's bushing
-    coulomb_upper: float = 0.0  # N, dry friction of the upper magnet's bushing
+    gamma_lower: float = 2.443  # N s/m, viscous friction of the lower magnet
+    gamma_upper: float = 0.06644  # N s/m, viscous friction of the upper magnet
+    coulomb_lower: float = 0.009201  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
+    coulomb_upper: float = 0.05755  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
+    stiction_lower: float = 0.4258  # N, extra friction at low speed (Stribeck peak) on the lower magnet
+    stiction_upper: float = 0.06662  # N, extra friction at low speed (Stribeck peak) on the upper magnet
+    v_stribeck: float = 1.139  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
+    v_creep: float = 0.7118  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
     h_top: float = 12.0  # cm, top stop of the upper magnet (the upper coil)
     i_sat: float = 3.899  # A, current-regulator saturation
     delay: float = 0.0  # s (physical), pure input delay beyond the one-sample read-then-write lag
-    t_phys: float = 6.575e-3  # s of physics per logged sample labelled 1 ms
+    t_phys: float = 0.005701  # s of physics per logged sample labelled 1 ms
     y_off: float = 0.4505  # cm, reading y = y_off + h
     noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
     noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
-    noise_line_hz: float = 103.96  # Hz, ripple frequency (aliased by the logging rate)
+    noise_line_hz: float = 119.91  # Hz, ripple frequency (aliased by the logging rate)
     noise_line_radius: float = 0.9198  # pole radius of the AR(2) line (its sharpness)
     quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
     force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
 
     def __post_init__(self) -> None:
-        positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys")
+        positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys", "v_stribeck")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"LevitatorParams.{name} must be a positive number, got {value!r}")
-        nonneg = ("kappa", "gamma_lower", "gamma_upper", "coulomb_lower", "coulomb_upper", "delay",
+        nonneg = ("kappa", "gamma_lower", "gamma_upper", "coulomb_lower", "coulomb_upper",
+                  "stiction_lower", "stiction_upper", "v_creep", "delay",
                   "noise_std", "noise_line_hz", "quant", "force_noise")
         for name in nonneg:
             value = getattr(self, name)
@@ -141,7 +150,7 @@ class Levitator:
     """The levitator rig: ``simulate`` a command record, find ``equilibrium``, ``linearize``.
 
     ``physical_time=False`` (default) reproduces the lab's records as labelled: every
-    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (6.575 ms for Ts = 1 ms).
+    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (5.701 ms for Ts = 1 ms).
     ``physical_time=True`` integrates exactly ``Ts`` of physics per sample.
     ``zero_at_10=True`` reproduces the lab logger's quirk of writing 0 A for any
     command >= 10 A (the 10 A level of the real staircase reads as 0 A).
@@ -169,7 +178,7 @@ class Levitator:
 
     # ------------------------------------------------------------------ time base
     def time_scale(self) -> float:
-        """Physical seconds per second of the simulator's time base (6.575 as labelled, 1 if physical)."""
+        """Physical seconds per second of the simulator's time base (t_phys / 1 ms as labelled, 1 if physical)."""
         return 1.0 if self.physical_time else self.params.t_phys / LABEL_TS
 
     def delay_samples(self, Ts: float) -> int:
@@ -234,13 +243,19 @@ class Levitator:
         return np.array([self.equilibrium(float(v)).y for v in np.asarray(u, float).reshape(-1)])
 
     # ------------------------------------------------------------------ linearisation
-    def linearize(self, u0: float, Ts: float = LABEL_TS) -> LinearModel:
+    def linearize(self, u0: float, Ts: float = LABEL_TS, *, dry_friction: bool = True) -> LinearModel:
         """Equilibrium at command ``u0`` and the true linear model there (continuous and ZOH at ``Ts``).
 
         States are (z, h, dz/dt, dh/dt) in cm and cm/s, or (h, dh/dt) while the lower
         magnet is seated; the output is the reading deviation in cm and the input the
-        command deviation in A (zero gain where the regulator saturates).  Coulomb
-        friction is not part of the linear model (it has no derivative at rest).
+        command deviation in A (zero gain where the regulator saturates).
+
+        Dry friction: with ``v_creep > 0`` the friction law is smooth, and its slope at
+        rest, ``(coulomb + stiction) / v_creep``, is a (large) viscous damping that the
+        exact Jacobian includes (``dry_friction=True``): the model of *infinitesimal*
+        motion.  Records with real excitation move far beyond ``v_creep`` and see much
+        less damping; ``dry_friction=False`` gives the viscous-only model instead.
+        Set-valued friction (``v_creep = 0``) has no derivative at rest and is left out.
         """
         Ts = _checked_ts(Ts)
         eq = self.equilibrium(u0)
@@ -255,6 +270,9 @@ class Levitator:
         dfc_di = 1.0 / (p.a * (z + p.b) ** p.n_coil)
         gain_u = 0.0 if (self.zero_at_10 and eq.u >= U_MAX) or not 0.0 < eq.u < p.i_sat else 1.0
         gl, gu = p.gamma_lower / p.m, p.gamma_upper / p.m
+        if dry_friction and p.v_creep > 0:
+            gl += _CM * (p.coulomb_lower + p.stiction_lower) / (p.v_creep * p.m)
+            gu += _CM * (p.coulomb_upper + p.stiction_upper) / (p.v_creep * p.m)
         if eq.upper_at_top:
             # the upper magnet is pressed against its stop: the reading cannot move
             A = np.array([[-1.0]])
@@ -347,23 +365,54 @@ class Levitator:
         return p.noise_std * (math.sqrt(frac) * line + math.sqrt(1 - frac) * white)
 
 
+def _friction(v: float, fc: float, fs: float, vs: float, vc: float, gamma: float) -> tuple[float, float]:
+    """Friction force [N] opposing velocity ``v`` [cm/s] and its slope dF/dv [N s/cm].
+
+    ``F(v) = (fc + fs exp(-(v/vs)^2)) tanh(v/vc) + gamma v / 100`` (gamma in N s/m):
+    Coulomb level ``fc``, a Stribeck peak ``fs`` above it at low speed, a tanh sign of
+    width ``vc`` (the creep/pre-sliding regime: at |v| << vc the dry friction acts like
+    a viscous damping (fc + fs) / vc) and viscous friction.  Reference form of the law
+    that the integrator inlines (and the tests check).
+    """
+    e = math.exp(-(v / vs) ** 2)
+    th = math.tanh(v / vc)
+    level = fc + fs * e
+    force = level * th + gamma * v / _CM
+    slope = level * (1.0 - th * th) / vc - 2.0 * fs * e * v / (vs * vs) * th + gamma / _CM
+    return force, slope
+
+
 def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float, substeps: int,
                z0: float, h0: float) -> tuple[np.ndarray, np.ndarray]:
-    """Semi-implicit Euler on plain floats: implicit viscous and dry friction, explicit forces.
+    """Semi-implicit Euler on plain floats: (linearly) implicit friction, explicit forces.
 
     Velocities are updated first with the forces at the current positions and the
-    friction treated implicitly (so heavy damping and stiction cannot go unstable),
-    then positions with the new velocities; the seat (z >= 0) and the top stop
-    (h <= h_top) are inelastic.  Returns the heights at the start of every sample
-    (sample-then-actuate, as the lab's logging loop and the ZOH model assume).
+    friction treated implicitly, then positions with the new velocities; the seat
+    (z >= 0) and the top stop (h <= h_top) are inelastic.  With ``v_creep > 0`` the
+    dry friction (Coulomb + Stribeck, tanh-regularised) is linearised about the old
+    velocity, ``v' = v + hs (a_ext - k F(v)) / (1 + hs k max(F'(v), 0))`` - one Newton
+    step of backward Euler, stable however steep the tanh is (the velocity-weakening
+    part, whose slope is negative, stays explicit).  With ``v_creep = 0`` the dry
+    friction is set-valued (exact stick-slip): a magnet sticks when the trial velocity
+    lies within the band the friction level at the old speed can cancel in one step.
+    Returns the heights at the start of every sample (sample-then-actuate, as the lab's
+    logging loop and the ZOH model assume).
     """
     hs = dt / substeps
     k = _CM / p.m
     w = p.m * p.g
     ia = 1.0 / p.a
     n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
-    dl, du = 1.0 + hs * p.gamma_lower / p.m, 1.0 + hs * p.gamma_upper / p.m
-    sl, su = hs * k * p.coulomb_lower / dl, hs * k * p.coulomb_upper / du  # stiction velocity bands
+    gl, gu = p.gamma_lower / _CM, p.gamma_upper / _CM  # N per cm/s
+    fcl, fcu, fsl, fsu = p.coulomb_lower, p.coulomb_upper, p.stiction_lower, p.stiction_upper
+    dry_l, dry_u = fcl + fsl > 0.0, fcu + fsu > 0.0
+    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
+    vc = p.v_creep
+    smooth = vc > 0.0
+    ivc = 1.0 / vc if smooth else 0.0
+    hk = hs * k
+    dl, du = 1.0 + hk * gl, 1.0 + hk * gu
+    exp, tanh = math.exp, math.tanh
     top = p.h_top
     z, h, vz, vh = z0, h0, 0.0, 0.0
     zs = [0.0] * len(cur)
@@ -374,20 +423,34 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
         ci = i_c * ia
         for _ in range(substeps):
             fm = c / (h - z + d) ** 4
-            vz = (vz + hs * k * (ci / (z + b) ** n - fm - w)) / dl
-            vh = (vh + hs * k * (fm - kap * ci / (h + b) ** n - w + f_n)) / du
-            if vz > sl:
-                vz -= sl
-            elif vz < -sl:
-                vz += sl
+            az = ci / (z + b) ** n - fm - w  # N, external force on the lower magnet
+            ah = fm - kap * ci / (h + b) ** n - w + f_n  # N, on the upper magnet
+            if not dry_l:
+                vz = (vz + hk * az) / dl
+            elif smooth:
+                e = exp(-vz * vz * ivs2) if fsl else 0.0
+                th = tanh(vz * ivc)
+                lev = fcl + fsl * e
+                slope = lev * (1.0 - th * th) * ivc + gl - 2.0 * fsl * e * vz * ivs2 * th
+                vz += hk * (az - lev * th - gl * vz) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
             else:
-                vz = 0.0
-            if vh > su:
-                vh -= su
-            elif vh < -su:
-                vh += su
+                lev = fcl + fsl * exp(-vz * vz * ivs2)
+                vz = (vz + hk * az) / dl
+                band = hk * lev / dl
+                vz = vz - band if vz > band else (vz + band if vz < -band else 0.0)
+            if not dry_u:
+                vh = (vh + hk * ah) / du
+            elif smooth:
+                e = exp(-vh * vh * ivs2) if fsu else 0.0
+                th = tanh(vh * ivc)
+                lev = fcu + fsu * e
+                slope = lev * (1.0 - th * th) * ivc + gu - 2.0 * fsu * e * vh * ivs2 * th
+                vh += hk * (ah - lev * th - gu * vh) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
             else:
-                vh = 0.0
+                lev = fcu + fsu * exp(-vh * vh * ivs2)
+                vh = (vh + hk * ah) / du
+                band = hk * lev / du
+                vh = vh - band if vh > band else (vh + band if vh < -band else 0.0)
             z += hs * vz
             h += hs * vh
             if z < 0.0:

@@ -9,7 +9,7 @@ import pytest
 from scipy import signal
 
 from maglev.estimate import arx
-from maglev.plant import Levitator, LevitatorParams
+from maglev.plant import Levitator, LevitatorParams, _friction
 from maglev.signals import random_binary
 
 
@@ -65,14 +65,23 @@ def test_logging_quirk_zero_at_10():
 
 
 def _dominant(poles, Ts):
+    """(ωn, ζ) of the slowest complex pair, else of the slowest real pole (ζ = 1)."""
     s = np.log(np.asarray(poles, dtype=complex)) / Ts
-    s = s[np.isfinite(s) & (s.imag > 1e-9)]
-    p = s[np.argmin(np.abs(s))]
+    s = s[np.isfinite(s)]
+    cplx = s[s.imag > 1e-9]
+    pick = cplx if cplx.size else s
+    p = pick[np.argmin(np.abs(pick))]
     return abs(p), -p.real / abs(p)
 
 
-def test_linearisation_matches_small_signal_identification():
+@pytest.mark.parametrize("viscous_only", [False, True])
+def test_linearisation_matches_small_signal_identification(viscous_only):
+    # with dry friction the exact Jacobian includes the friction's slope at rest (overdamped
+    # small-signal modes); without it (dry friction removed) the modes are a light complex pair
     lev = Levitator()
+    if viscous_only:
+        lev = lev.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0)
+        assert np.iscomplex(ct.poles(lev.linearize(2.75).sys_c)).any()
     lin = lev.linearize(2.75)
     u = 2.75 + 0.01 * (random_binary(8000, 0.5, -1.0, 1.0, seed=4))
     data = lev.simulate(u, noise=False, start=2.75, substeps=16)
@@ -87,6 +96,52 @@ def test_linearisation_matches_small_signal_identification():
     pc = np.sort_complex(np.exp(ct.poles(lin.sys_c) * lin.Ts))
     pd = np.sort_complex(ct.poles(lin.sys_d)[np.abs(ct.poles(lin.sys_d)) > 1e-9])
     assert np.allclose(pc, pd, atol=1e-9)
+
+
+def test_friction_law_levels_and_slopes():
+    fc, fs, vs, vc, gamma = 0.05, 0.03, 2.0, 0.4, 1.5
+    force0, slope0 = _friction(0.0, fc, fs, vs, vc, gamma)
+    assert force0 == 0.0
+    assert slope0 == pytest.approx((fc + fs) / vc + gamma / 100)  # creep regime: heavy damping at rest
+    fast, _ = _friction(50.0, fc, fs, vs, vc, gamma)
+    assert fast == pytest.approx(fc + gamma * 50.0 / 100, rel=1e-9)  # Stribeck peak gone: Coulomb + viscous
+    peak = max(_friction(v, fc, fs, vs, vc, gamma)[0] - gamma * v / 100 for v in np.linspace(0.01, 10, 500))
+    assert fc < peak < fc + fs  # velocity weakening: the dry part peaks above the Coulomb level
+    for v in (-3.0, 0.3, 1.1, 4.0):
+        f, s = _friction(v, fc, fs, vs, vc, gamma)
+        assert _friction(-v, fc, fs, vs, vc, gamma)[0] == pytest.approx(-f)
+        num = (_friction(v + 1e-6, fc, fs, vs, vc, gamma)[0] - _friction(v - 1e-6, fc, fs, vs, vc, gamma)[0]) / 2e-6
+        assert s == pytest.approx(num, rel=1e-5, abs=1e-9)
+
+
+def test_dry_friction_makes_the_gain_amplitude_dependent():
+    lev = Levitator()
+    base = lev.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0)
+
+    def gain(plant, amp):
+        u = random_binary(6000, 0.25, 2.75 - amp, 2.75 + amp, seed=3)
+        d = plant.simulate(u, noise=False, start=2.75).trim(1000)
+        return np.std(d.y) / np.std(d.u)
+
+    small, large = gain(lev, 0.05), gain(lev, 1.25)
+    assert large > 2.0 * small  # small motions are held back by the dry friction
+    assert gain(base, 1.25) / gain(base, 0.05) < 1.5  # without it the plant is nearly linear
+    # small-signal (Jacobian) damping includes the friction's slope at rest
+    zeta = [_dominant(ct.poles(lev.linearize(2.75, dry_friction=dry).sys_d), 1e-3)[1] for dry in (True, False)]
+    assert zeta[0] > zeta[1]
+
+
+def test_set_valued_stiction_holds_then_releases():
+    sticky = Levitator().with_params(v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05,
+                                     stiction_lower=0.0, stiction_upper=0.0, gamma_lower=2.0, gamma_upper=0.5)
+    held = sticky.simulate(np.full(500, 2.8), start=2.75, noise=False)
+    eq = sticky.equilibrium(2.75)
+    assert np.all(held.meta["h"] == eq.h) and np.all(held.meta["z"] == eq.z)  # stuck: no creep at all
+    moved = sticky.simulate(np.full(500, 3.5), start=2.75, noise=False)
+    jump = sticky.equilibrium(3.5).h - eq.h
+    assert abs(moved.meta["h"][-1] - eq.h - jump) < 0.5 * jump  # a large force breaks it free
+    creeping = Levitator().simulate(np.full(3000, 2.8), start=2.75, noise=False)  # smooth law: creeps home
+    assert creeping.meta["h"][-1] == pytest.approx(Levitator().equilibrium(2.8).h, abs=1e-6)
 
 
 def test_linear_gain_equals_static_slope():

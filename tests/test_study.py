@@ -92,7 +92,12 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
                     "fit_seconds", "iterations", "whiteness_pvalue", "whiteness_pass",
                     "independence_pvalue", "independence_pass", "g_h2_rel_err", "dcgain_rel_err"):
             assert key in m, key
-        assert 50 < m["val_fit"] <= 100
+        assert m["val_fit"] <= 100
+        # Output error on small white noise (uniform_narrow, U(1.75, 2.5)) predicts poorly, as on the
+        # real rig (white_noise_2): dry friction holds small motions back. Models with a noise model,
+        # and the large binary input, predict well.
+        if t["structure"] == "arx" or t["input_class"] == "binary":
+            assert m["val_fit"] > 50, (r.info.run_name, m["val_fit"])
         assert r.data.params["structure.name"] == t["structure"]
         assert r.data.params["dataset.duration_s"] == "4.0"
         paths = artifact_paths(client, r.info.run_id)
