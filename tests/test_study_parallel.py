@@ -87,7 +87,8 @@ def test_server_mode_runs_are_listed_by_the_rest_api(tmp_path, mlflow_server):
     store.mkdir()
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "tracking=server", f"tracking.uri={mlflow_server}",
            "dataset=uniform_narrow", "structure=arx,oe", *TINY,
-           f"hydra.sweep.dir={store}/multirun", f"hydra.run.dir={store}/outputs"]
+           f"hydra.sweep.dir={store}/multirun", f"hydra.run.dir={store}/outputs",
+           f"hydra.callbacks.maglev_rank.report_dir={store}/reports"]  # ranking via the server too
     env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=300, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -105,3 +106,7 @@ def test_server_mode_runs_are_listed_by_the_rest_api(tmp_path, mlflow_server):
     listing = _api(mlflow_server, f"artifacts/list?run_id={run_id}&path=figures")
     assert {"figures/bode.png", "figures/compare.png"} <= {f["path"] for f in listing["files"]}
     assert not (Path(store) / "mlruns").exists()
+    # the end-of-sweep ranking also works against the server
+    ranking = _api(mlflow_server, "runs/search", {"experiment_ids": [exp["experiment_id"]],
+                                                  "filter": "tags.kind = 'ranking'", "max_results": 10})
+    assert len(ranking["runs"]) == 1 and (Path(store) / "reports").is_dir()
