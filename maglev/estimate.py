@@ -27,7 +27,7 @@ import numpy as np
 from .data import IOData
 from .initial_state import INITIAL_CONDITIONS
 from .models import FitReport, PolyModel
-from .prediction_error import CONVERGED, evaluate, minimise, project
+from .prediction_error import CONVERGED, evaluate, minimise, project, triangular_factor
 from .polynomials import filt, stabilize
 from .structure import PolySpec
 from .threads import single_threaded_blas
@@ -45,10 +45,8 @@ def arx(data: IOData, na: int, nb: int, nk: int, initial_condition: str = "auto"
     y, u = _checked(data, spec, initial_condition)
     first = {"auto": spec.na, "zero": 0}.get(initial_condition, spec.max_lag)
     phi, target = _regression(y, u, spec, first)
-    p = phi.shape[1]
-    full = np.linalg.qr(np.column_stack([phi, target]), mode="r")  # R and Qᵀy without forming Q
-    r = full[:p, :p]
-    theta = _solve_triangular(r, full[:p, p], data)
+    r, qty = triangular_factor(phi, target)
+    theta = _solve_triangular(r, qty, data)
     e = target - phi @ theta
     A, B, *_ = spec.polys(theta)
     report = FitReport.from_residuals(
@@ -140,7 +138,7 @@ def _regression(y: np.ndarray, u: np.ndarray, spec: PolySpec, first: int) -> tup
     """ARX regressors [-y(t-1) … -y(t-na), u(t-nk) … u(t-nk-nb+1)] for rows t ≥ first (pre-sample zero)."""
     N = y.size
     rows = N - first
-    phi = np.empty((rows, spec.na + spec.nb))
+    phi = np.empty((rows, spec.na + spec.nb), order="F")
     for i in range(1, spec.na + 1):
         phi[:, i - 1] = -_lagged(y, i, first)
     for j in range(spec.nb):
@@ -173,13 +171,15 @@ def _solve_triangular(r: np.ndarray, rhs: np.ndarray, data: IOData) -> np.ndarra
 def _lstsq(phi: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Least squares through one R-only QR of [Φ y]; SVD-based lstsq if Φ is rank deficient."""
     p = phi.shape[1]
-    full = np.linalg.qr(np.column_stack([phi, target]), mode="r")
-    diag = np.abs(np.diag(full)[:p])
-    if p == 0 or diag.min() <= 1e-10 * diag.max():
+    if p == 0:
+        return np.zeros(0)
+    r, qty = triangular_factor(phi, target)
+    diag = np.abs(np.diag(r))
+    if diag.min() <= 1e-10 * diag.max():
         return np.linalg.lstsq(phi, target, rcond=None)[0]
     from scipy.linalg import solve_triangular
 
-    return solve_triangular(full[:p, :p], full[:p, p])
+    return solve_triangular(r, qty)
 
 
 def _ls_arx(
@@ -344,9 +344,10 @@ def _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance):
 
 
 def _bj_from_oe(spec: PolySpec, y, u, g_starts, max_iterations, tolerance) -> np.ndarray:
-    """BJ start: minimise the OE part first, then model its residual as ARMA."""
+    """BJ start: minimise the OE part first (from Steiglitz–McBride; the ARX input path is
+    already among BJ's own starts), then model its residual as ARMA."""
     oe_spec = PolySpec("oe", nb=spec.nb, nf=spec.nf, nk=spec.nk)
-    oe_starts = _starts(oe_spec, y, u, g_starts)
+    oe_starts = _starts(oe_spec, y, u, g_starts[:1])
     oe_best = _best_minimum(oe_spec, oe_starts, y, u, False, max_iterations, tolerance)
     _, B, _, _, F = oe_spec.polys(oe_best.evaluation.theta)
     C, D = _hannan_rissanen(oe_best.evaluation.e, spec.nc, spec.nd)

@@ -93,19 +93,26 @@ def stabilize(p: np.ndarray) -> np.ndarray:
     of the rounded coefficients at or beyond 1.
     """
     p = np.asarray(p, dtype=float)
-    if len(p) <= 1:
+    if len(p) <= 1 or _inside(p, MAX_RADIUS):
         return p.copy()
     roots = np.roots(p)
-    radius = np.abs(roots)
-    if np.all(radius <= MAX_RADIUS):
-        return p.copy()
-    outside = radius > 1.0
+    outside = np.abs(roots) > 1.0
     roots[outside] = 1.0 / np.conj(roots[outside])
     radius = np.abs(roots)
     near = radius > MAX_RADIUS
     roots[near] *= MAX_RADIUS / radius[near]
     q = np.real(np.poly(roots))
     return q * (p[0] / q[0])
+
+
+def _inside(p: np.ndarray, radius: float) -> bool:
+    """All roots of monic ``p`` within ``radius``: Jury's conditions up to degree 2, else roots."""
+    if p[0] != 1.0 or len(p) > 3:
+        return bool(np.all(np.abs(np.roots(p)) <= radius))
+    if len(p) == 2:
+        return abs(p[1]) <= radius
+    a1, a2 = p[1] / radius, p[2] / radius**2  # roots of z² + a1 z + a2 scaled by 1/radius
+    return abs(a2) <= 1.0 and abs(a1) <= 1.0 + a2
 
 
 def _pad(p: np.ndarray, n: int) -> np.ndarray:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import qr
+from scipy.linalg.lapack import dgeqrf
 
 from .polynomials import filt, polymul, stabilize, transient_length
 from .structure import PolySpec
@@ -119,7 +120,7 @@ def _jacobian(spec, A, B, C, D, F, y, u, w, v, e, s) -> np.ndarray:
     use the total e) and ∂s/∂f_i = −q⁻ⁱ s/F.
     """
     N = y.size
-    jac = np.empty((N, spec.n_params))
+    jac = np.empty((N, spec.n_params), order="F")  # columns contiguous, ready for LAPACK
     col = 0
 
     def shifted(x: np.ndarray, lags) -> None:
@@ -185,7 +186,7 @@ def minimise(
     termination = "maximum number of iterations reached"
     iterations = 0
     for iterations in range(1, max_iterations + 1):
-        r, g = _triangular_factor(current.jac, current.e)
+        r, g = triangular_factor(current.jac, current.e)
         # Gauss-Newton predicts a loss reduction of |Q'e|^2 / N
         expected = float(g @ g) / current.e.size
         if current.loss == 0 or expected <= tolerance * current.loss:
@@ -234,16 +235,27 @@ def minimise(
             termination = "relative improvement below tolerance"
             break
     else:
-        r, _ = _triangular_factor(current.jac, current.e)
+        r, _ = triangular_factor(current.jac, current.e)
     if termination.startswith("relative"):
-        r, _ = _triangular_factor(current.jac, current.e)
+        r, _ = triangular_factor(current.jac, current.e)
     return Minimum(current, iterations, termination, r)
 
 
-def _triangular_factor(jac: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """R and Qᵀe of J = QR from one R-only QR of [J e] (Q is never formed)."""
-    p = jac.shape[1]
-    full = np.linalg.qr(np.column_stack([jac, e]), mode="r")
+def triangular_factor(matrix: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R and Qᵀ·rhs of matrix = QR, from one Householder QR of [matrix rhs] (Q never formed).
+
+    Calls LAPACK's dgeqrf on a Fortran-ordered copy: numpy's ``qr`` would copy a C-ordered
+    array to Fortran order anyway, and stacking the columns first copies once more.
+    """
+    n, p = matrix.shape
+    a = np.empty((n, p + 1), order="F")
+    a[:, :p] = matrix
+    a[:, p] = rhs
+    factored, _, _, info = dgeqrf(a, overwrite_a=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"QR factorisation failed (LAPACK dgeqrf info = {info})")
+    k = min(n, p + 1)
+    full = np.triu(factored[:k])
     return full[:p, :p], full[:p, p]
 
 

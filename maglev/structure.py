@@ -104,12 +104,13 @@ class PolySpec:
 
     def theta(self, A=None, B=None, C=None, D=None, F=None) -> np.ndarray:
         """Parameter vector from polynomials (missing monic ones are 1, missing B is 0)."""
-        parts = []
+        theta = np.zeros(self.n_params)
+        i = 0
         for key, p in zip(("na", "nb", "nc", "nd", "nf"), (A, B, C, D, F)):
             n = getattr(self, key)
-            if key == "nb":
-                vals = np.zeros(n) if p is None else np.asarray(p, float)[self.nk : self.nk + n]
-            else:
-                vals = np.zeros(n) if p is None else np.asarray(p, float)[1 : 1 + n]
-            parts.append(np.pad(vals, (0, n - vals.size)))
-        return np.concatenate(parts)
+            if p is not None:
+                first = self.nk if key == "nb" else 1
+                vals = np.asarray(p, float)[first : first + n]
+                theta[i : i + vals.size] = vals  # missing trailing coefficients stay 0
+            i += n
+        return theta
