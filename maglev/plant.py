@@ -382,6 +382,33 @@ def _friction(v: float, fc: float, fs: float, vs: float, vc: float, gamma: float
     return force, slope
 
 
+def _velocity_step(hk: float, gamma: float, fc: float, fs: float, ivs2: float, ivc: float,
+                   smooth: bool):
+    """The velocity update of one magnet over one substep, for its friction parameters.
+
+    ``hk`` is the substep times the force-to-acceleration factor; the returned function
+    maps (velocity, external force) to the new velocity (see :func:`_integrate`).
+    """
+    exp, tanh = math.exp, math.tanh
+    damp = 1.0 + hk * gamma
+    if fc + fs <= 0.0:  # viscous only: implicit Euler
+        return lambda v, a: (v + hk * a) / damp
+    if smooth:
+        def step(v: float, a: float) -> float:
+            e = exp(-v * v * ivs2) if fs else 0.0
+            th = tanh(v * ivc)
+            level = fc + fs * e
+            slope = level * (1.0 - th * th) * ivc + gamma - 2.0 * fs * e * v * ivs2 * th
+            return v + hk * (a - level * th - gamma * v) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
+        return step
+
+    def stick_slip(v: float, a: float) -> float:
+        band = hk * (fc + fs * exp(-v * v * ivs2)) / damp
+        v = (v + hk * a) / damp
+        return v - band if v > band else (v + band if v < -band else 0.0)
+    return stick_slip
+
+
 def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float, substeps: int,
                z0: float, h0: float) -> tuple[np.ndarray, np.ndarray]:
     """Semi-implicit Euler on plain floats: (linearly) implicit friction, explicit forces.
@@ -405,15 +432,14 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
     gl, gu = p.gamma_lower / _CM, p.gamma_upper / _CM  # N per cm/s
     fcl, fcu, fsl, fsu = p.coulomb_lower, p.coulomb_upper, p.stiction_lower, p.stiction_upper
-    dry_l, dry_u = fcl + fsl > 0.0, fcu + fsu > 0.0
     ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
     vc = p.v_creep
     smooth = vc > 0.0
     ivc = 1.0 / vc if smooth else 0.0
     hk = hs * k
-    dl, du = 1.0 + hk * gl, 1.0 + hk * gu
-    exp, tanh = math.exp, math.tanh
     top = p.h_top
+    step_l = _velocity_step(hk, gl, fcl, fsl, ivs2, ivc, smooth)
+    step_u = _velocity_step(hk, gu, fcu, fsu, ivs2, ivc, smooth)
     z, h, vz, vh = z0, h0, 0.0, 0.0
     zs = [0.0] * len(cur)
     hs_out = [0.0] * len(cur)
@@ -425,32 +451,8 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
             fm = c / (h - z + d) ** 4
             az = ci / (z + b) ** n - fm - w  # N, external force on the lower magnet
             ah = fm - kap * ci / (h + b) ** n - w + f_n  # N, on the upper magnet
-            if not dry_l:
-                vz = (vz + hk * az) / dl
-            elif smooth:
-                e = exp(-vz * vz * ivs2) if fsl else 0.0
-                th = tanh(vz * ivc)
-                lev = fcl + fsl * e
-                slope = lev * (1.0 - th * th) * ivc + gl - 2.0 * fsl * e * vz * ivs2 * th
-                vz += hk * (az - lev * th - gl * vz) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
-            else:
-                lev = fcl + fsl * exp(-vz * vz * ivs2)
-                vz = (vz + hk * az) / dl
-                band = hk * lev / dl
-                vz = vz - band if vz > band else (vz + band if vz < -band else 0.0)
-            if not dry_u:
-                vh = (vh + hk * ah) / du
-            elif smooth:
-                e = exp(-vh * vh * ivs2) if fsu else 0.0
-                th = tanh(vh * ivc)
-                lev = fcu + fsu * e
-                slope = lev * (1.0 - th * th) * ivc + gu - 2.0 * fsu * e * vh * ivs2 * th
-                vh += hk * (ah - lev * th - gu * vh) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
-            else:
-                lev = fcu + fsu * exp(-vh * vh * ivs2)
-                vh = (vh + hk * ah) / du
-                band = hk * lev / du
-                vh = vh - band if vh > band else (vh + band if vh < -band else 0.0)
+            vz = step_l(vz, az)
+            vh = step_u(vh, ah)
             z += hs * vz
             h += hs * vh
             if z < 0.0:
