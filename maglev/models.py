@@ -17,6 +17,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .data import IOData
+from .fit import fit_percent
 from .initial_state import INITIAL_CONDITIONS, fit_initial_state
 from .polynomials import filt, is_stable, polymul
 
@@ -79,16 +80,9 @@ class FitReport:
             aicc=aic + 2 * d * (d + 1) / (N - d - 1) if N - d - 1 > 0 else math.inf,
             bic=N * logV + d * math.log(N) + const,
             naic=logV + 2 * d / N,
-            fit_percent=_fit(y, y - e),
+            fit_percent=fit_percent(y, y - e),
             **info,
         )
-
-
-def _fit(y: np.ndarray, yhat: np.ndarray) -> float:
-    denom = np.linalg.norm(y - y.mean())
-    if denom == 0:
-        return -math.inf
-    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / denom))
 
 
 @dataclass(frozen=True)

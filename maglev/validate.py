@@ -16,19 +16,10 @@ from scipy.linalg import toeplitz
 from scipy.stats import chi2
 
 from .data import IOData
+from .fit import fit_percent
 from .models import PolyModel
 
-
-def fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
-    """Normalised root-mean-square fit in percent: 100 (1 − ‖y − ŷ‖ / ‖y − mean(y)‖)."""
-    y = np.asarray(y, dtype=float)
-    yhat = np.asarray(yhat, dtype=float)
-    if y.shape != yhat.shape:
-        raise ValueError(f"fit_percent: y has shape {y.shape} but yhat has {yhat.shape}")
-    spread = np.linalg.norm(y - y.mean())
-    if spread == 0:
-        raise ValueError("fit_percent: y is constant, so FIT is undefined")
-    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / spread))
+__all__ = ["fit_percent", "compare", "resid", "ResidResult"]
 
 
 def compare(

@@ -2,25 +2,23 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import matplotlib
 import pytest
 
-matplotlib.use("Agg")
+matplotlib.use("Agg")  # before anything imports pyplot (python-control does)
+
+from maglev.calibrate import refdata_dir  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def refdata_dir() -> Path:
-    """``$MAGLEV_REFDATA`` or ``../shared/refdata`` beside the repository."""
-    return Path(os.environ.get("MAGLEV_REFDATA", REPO.parent / "shared" / "refdata"))
-
-
 @pytest.fixture
 def refdata() -> Path:
+    """The real recordings (``$MAGLEV_REFDATA`` or ``../shared/refdata``), or skip with the reason."""
     path = refdata_dir()
-    if not (path / "el2820_maglev_2022").is_dir():
-        pytest.skip(f"real lab data not found at {path} (set MAGLEV_REFDATA or place ../shared/refdata)")
+    if path is None or not (path / "el2820_maglev_2022").is_dir():
+        pytest.skip(f"real lab data not found at {path or REPO.parent / 'shared' / 'refdata'} "
+                    "(set MAGLEV_REFDATA or place ../shared/refdata)")
     return path
