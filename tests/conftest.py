@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import matplotlib
@@ -19,6 +20,6 @@ def refdata() -> Path:
     """The real recordings (``$MAGLEV_REFDATA`` or ``../shared/refdata``), or skip with the reason."""
     path = refdata_dir()
     if path is None or not (path / "el2820_maglev_2022").is_dir():
-        pytest.skip(f"real lab data not found at {path or REPO.parent / 'shared' / 'refdata'} "
-                    "(set MAGLEV_REFDATA or place ../shared/refdata)")
+        searched = os.environ.get("MAGLEV_REFDATA") or REPO.parent / "shared" / "refdata"
+        pytest.skip(f"real lab data not found at {searched} (set MAGLEV_REFDATA or place ../shared/refdata)")
     return path
