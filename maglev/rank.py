@@ -20,7 +20,6 @@ import hashlib
 import logging
 import math
 import sys
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -34,7 +33,9 @@ import pandas as pd  # noqa: E402
 from hydra.experimental.callback import Callback  # noqa: E402
 from omegaconf import DictConfig  # noqa: E402
 
+from maglev.study.tracking import log_files  # noqa: E402
 from maglev.sweep_runs import Sweep, SweepError, dataset_configs, default_uri, load_model, load_sweep  # noqa: E402
+from maglev.validate import ResidResult  # noqa: E402
 
 log = logging.getLogger("maglev.rank")
 
@@ -147,27 +148,13 @@ class Ranking:
         return hashlib.sha1(text.encode()).hexdigest()
 
 
-def resid_result(d: dict):
-    """A ``ResidResult`` (without the residual sequence) from a run's ``resid/resid.json``."""
-    from maglev.validate import ResidResult
-
-    return ResidResult(
-        e=np.array([]), auto_lags=np.asarray(d["auto_lags"]), auto_corr=np.asarray(d["auto_corr"]),
-        auto_band=float(d["auto_band"]), cross_lags=np.asarray(d["cross_lags"]),
-        cross_corr=np.asarray(d["cross_corr"]), cross_band=float(d["cross_band"]),
-        whiteness_stat=float(d["whiteness_stat"]), whiteness_dof=int(d["whiteness_dof"]),
-        whiteness_pvalue=float(d["whiteness_pvalue"]), independence_stat=float(d["independence_stat"]),
-        independence_dof=int(d["independence_dof"]), independence_pvalue=float(d["independence_pvalue"]),
-        auto_outside=float(d["auto_outside"]), cross_outside=float(d["cross_outside"]))
-
-
 def run_resid(sweep: Sweep, row: pd.Series, model):
     """The run's residual analysis: its ``resid/resid.json``, else recomputed from its logged config."""
     from maglev.sweep_runs import artifact_json, run_config
 
     logged = artifact_json(sweep.client, row["run_id"], "resid/resid.json")
     if logged is not None:
-        return resid_result(logged)
+        return ResidResult.from_dict(logged)
     from maglev.study.datasets import load
     from maglev.validate import resid
 
@@ -282,16 +269,6 @@ def log_ranking(r: Ranking) -> str:
     client.set_terminated(run_id, "FINISHED")
     tracking.log_batch(client, r.sweep.parent_id, tags={"ranking_run": run_id})
     return run_id
-
-
-def log_files(client, run_id: str, files: dict[str, Any]) -> None:
-    """Upload ``{artifact path: str or bytes}`` in one call."""
-    with tempfile.TemporaryDirectory(prefix="maglev-rank-") as tmp:
-        for rel, content in files.items():
-            path = Path(tmp) / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(content if isinstance(content, bytes) else content.encode())
-        client.log_artifacts(run_id, tmp)
 
 
 def ui_hint(sweep: Sweep, run_id: str) -> str:

@@ -24,7 +24,8 @@ import matplotlib
 matplotlib.use("Agg")
 
 from maglev import report_sections as sec  # noqa: E402
-from maglev.rank import Ranking, add_store_args, compute, log_files, log_ranking, ui_hint  # noqa: E402
+from maglev.rank import Ranking, add_store_args, compute, log_ranking, ui_hint  # noqa: E402
+from maglev.study.tracking import log_files  # noqa: E402
 from maglev.sweep_runs import (  # noqa: E402
     SweepError, artifact_bytes, artifact_json, default_uri, load_model, load_sweep)
 

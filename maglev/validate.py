@@ -83,19 +83,30 @@ class ResidResult:
         return self.independence_pvalue >= TEST_LEVEL
 
     def to_dict(self) -> dict:
-        """Scalar summary (for logging), without the sequences."""
+        """JSON-ready: correlations, bands and tests, without the residual sequence ``e``."""
         return {
-            "whiteness_stat": self.whiteness_stat,
-            "whiteness_pvalue": self.whiteness_pvalue,
-            "white": self.white,
-            "independence_stat": self.independence_stat,
-            "independence_pvalue": self.independence_pvalue,
-            "independent": self.independent,
-            "auto_outside": self.auto_outside,
-            "cross_outside": self.cross_outside,
+            "auto_lags": self.auto_lags.tolist(), "auto_corr": self.auto_corr.tolist(),
             "auto_band": self.auto_band,
+            "cross_lags": self.cross_lags.tolist(), "cross_corr": self.cross_corr.tolist(),
             "cross_band": self.cross_band,
+            "whiteness_stat": self.whiteness_stat, "whiteness_dof": self.whiteness_dof,
+            "whiteness_pvalue": self.whiteness_pvalue, "white": bool(self.white),
+            "independence_stat": self.independence_stat, "independence_dof": self.independence_dof,
+            "independence_pvalue": self.independence_pvalue, "independent": bool(self.independent),
+            "auto_outside": self.auto_outside, "cross_outside": self.cross_outside,
         }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ResidResult":
+        """Inverse of :meth:`to_dict` (``e`` comes back empty)."""
+        return cls(
+            e=np.array([]), auto_lags=np.asarray(d["auto_lags"]), auto_corr=np.asarray(d["auto_corr"]),
+            auto_band=float(d["auto_band"]), cross_lags=np.asarray(d["cross_lags"]),
+            cross_corr=np.asarray(d["cross_corr"]), cross_band=float(d["cross_band"]),
+            whiteness_stat=float(d["whiteness_stat"]), whiteness_dof=int(d["whiteness_dof"]),
+            whiteness_pvalue=float(d["whiteness_pvalue"]), independence_stat=float(d["independence_stat"]),
+            independence_dof=int(d["independence_dof"]), independence_pvalue=float(d["independence_pvalue"]),
+            auto_outside=float(d["auto_outside"]), cross_outside=float(d["cross_outside"]))
 
 
 def resid(

@@ -204,7 +204,7 @@ def test_markdown_table_escapes_and_formats():
 
 
 def test_resid_json_round_trips_into_a_resid_result():
-    from maglev.rank import resid_result
+    from maglev.validate import ResidResult
 
-    r = resid_result(json.loads(json.dumps(resid_json(0.2))))
+    r = ResidResult.from_dict(json.loads(json.dumps(resid_json(0.2))))
     assert r.white and r.auto_outside == 0.2 and list(r.cross_lags) == list(range(-5, 6))

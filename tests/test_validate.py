@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -192,3 +193,14 @@ def test_resid_rejects_bad_arguments():
         resid(IOData(data.u, data.y, 0.1), _armax_model())
     with pytest.raises(TypeError, match="model"):
         resid(data, "not a model")
+
+
+def test_resid_result_dict_round_trip():
+    from maglev.validate import ResidResult
+
+    r = resid(_armax_data(seed=3), _armax_model(), lags=10)
+    back = ResidResult.from_dict(json.loads(json.dumps(r.to_dict())))
+    for key in ("auto_lags", "auto_corr", "cross_lags", "cross_corr"):
+        np.testing.assert_array_equal(getattr(back, key), getattr(r, key))
+    assert back.whiteness_pvalue == r.whiteness_pvalue and back.independent == r.independent
+    assert back.e.size == 0

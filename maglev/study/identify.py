@@ -82,7 +82,7 @@ def identify(cfg: dict, figures: bool = True) -> RunOutput:
         true_sys = true_plant(prep)
         metrics.update(true_distance(model, true_sys))
     out = RunOutput(model=model, metrics={k: float(v) for k, v in metrics.items()},
-                    resid=resid_json(rr), prepared=prep)
+                    resid=rr.to_dict(), prepared=prep)
     if figures:
         out.figures = draw(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon)
     return out
@@ -129,18 +129,6 @@ def spectral_estimate(data, nperseg: int | None = None) -> tuple[np.ndarray, np.
     return 2 * math.pi * f[keep], p_uy[keep] / p_uu[keep]
 
 
-def resid_json(rr: ResidResult) -> dict:
-    """The residual analysis without the residual sequence: correlations, bands and tests."""
-    return {
-        "auto_lags": rr.auto_lags.tolist(), "auto_corr": rr.auto_corr.tolist(), "auto_band": rr.auto_band,
-        "cross_lags": rr.cross_lags.tolist(), "cross_corr": rr.cross_corr.tolist(),
-        "cross_band": rr.cross_band,
-        "whiteness_stat": rr.whiteness_stat, "whiteness_dof": rr.whiteness_dof,
-        "whiteness_pvalue": rr.whiteness_pvalue, "white": bool(rr.white),
-        "independence_stat": rr.independence_stat, "independence_dof": rr.independence_dof,
-        "independence_pvalue": rr.independence_pvalue, "independent": bool(rr.independent),
-        "auto_outside": rr.auto_outside, "cross_outside": rr.cross_outside,
-    }
 
 
 # ---------------------------------------------------------------------------- figures

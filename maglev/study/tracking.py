@@ -174,13 +174,15 @@ def log_batch(client: MlflowClient, run_id: str, params: dict | None = None,
 
 
 def log_files(client: MlflowClient, run_id: str, files: dict, dpi: int = 90) -> None:
-    """Upload ``{artifact path: content}`` in one call; content is str, dict (JSON), a Figure or a Path."""
+    """Upload ``{artifact path: content}`` in one call; content is str, bytes, dict (JSON), a Figure or a Path."""
     with tempfile.TemporaryDirectory(prefix="maglev-artifacts-") as tmp:
         for rel, content in files.items():
             path = Path(tmp) / rel
             path.parent.mkdir(parents=True, exist_ok=True)
             if isinstance(content, str):
                 path.write_text(content)
+            elif isinstance(content, bytes):
+                path.write_bytes(content)
             elif isinstance(content, dict):
                 path.write_text(json.dumps(content, indent=1, default=str))
             elif isinstance(content, Path):
