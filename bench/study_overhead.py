@@ -89,7 +89,7 @@ def one_run(cfg: dict, client, exp_id: str) -> dict[str, float]:
     tracking.log_batch(client, run_id, params=tracking.flatten(cfg))
     lap("track:run+params")
     files = dict(pngs)
-    files.update({"model/model.json": model.to_json(), "resid/resid.json": ident.resid_json(rr),
+    files.update({"model/model.json": model.to_json(), "resid/resid.json": rr.to_dict(),
                   "config/config.yaml": OmegaConf.to_yaml(OmegaConf.create(cfg))})
     tracking.log_files(client, run_id, files)
     lap("track:artifacts")
