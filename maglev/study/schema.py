@@ -18,7 +18,7 @@ directory holding ``study.py`` and ``conf/``, else the current directory).
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field, make_dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
 from typing import Any, Optional
@@ -96,18 +96,50 @@ class FileDatasetCfg:
     preprocess: PreprocessCfg = field(default_factory=PreprocessCfg)
 
 
-def structure_schema(structure: str) -> type:
-    """Schema of one structure: its MATLAB orders (each defaulting to ``order``), nk, options.
+@dataclass
+class ArxCfg:
+    name: str = "arx"
+    order: int = 2
+    na: int = "${.order}"  # type: ignore[assignment]
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
 
-    Built from :data:`maglev.structure.ORDER_NAMES`, so a key the structure does not
-    have (``na`` for OE) is refused at composition, naming the key.
-    """
-    fields = [("name", str, structure), ("order", int, 2)]
-    fields += [(key, int, "${.order}") for key in ORDER_NAMES[structure] if key != "nk"]
-    fields += [("nk", int, 1), ("initial_condition", InitialCondition, InitialCondition.auto)]
-    if structure != "arx":  # least squares has no iterations
-        fields.append(("max_iterations", int, 200))
-    return make_dataclass(f"{structure.capitalize()}Cfg", [(n, t, field(default=d)) for n, t, d in fields])
+
+@dataclass
+class ArmaxCfg:
+    name: str = "armax"
+    order: int = 2
+    na: int = "${.order}"  # type: ignore[assignment]
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nc: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
+    max_iterations: int = 200
+
+
+@dataclass
+class OeCfg:
+    name: str = "oe"
+    order: int = 2
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nf: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
+    max_iterations: int = 200
+
+
+@dataclass
+class BjCfg:
+    name: str = "bj"
+    order: int = 2
+    nb: int = "${.order}"  # type: ignore[assignment]
+    nc: int = "${.order}"  # type: ignore[assignment]
+    nd: int = "${.order}"  # type: ignore[assignment]
+    nf: int = "${.order}"  # type: ignore[assignment]
+    nk: int = 1
+    initial_condition: InitialCondition = InitialCondition.auto
+    max_iterations: int = 200
 
 
 ORDER_KEYS = {name: ORDER_NAMES[name] for name in ("arx", "armax", "oe", "bj")}  # MATLAB order vectors
@@ -156,7 +188,7 @@ class Config:
 
 
 DATASET_SCHEMAS = {"sim": SimDatasetCfg, "file": FileDatasetCfg}
-STRUCTURE_SCHEMAS = {name: structure_schema(name) for name in ("arx", "armax", "oe", "bj")}
+STRUCTURE_SCHEMAS = {"arx": ArxCfg, "armax": ArmaxCfg, "oe": OeCfg, "bj": BjCfg}
 
 
 def register() -> None:
