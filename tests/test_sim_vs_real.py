@@ -1,0 +1,124 @@
+"""Tests of maglev.sim_vs_real: the simulator's defaults reproduce the real KTH records.
+
+Each test replays a real record's input through the default simulator and compares
+the numbers the lab computes on both; the real records are needed (skips otherwise).
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from maglev import sim_vs_real
+from maglev.plant import Levitator
+from maglev.refdata import KTH_2022
+
+REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[1].parent / "shared" / "refdata"))
+needs_real = pytest.mark.skipif(not (REAL / KTH_2022).is_dir(),
+                                reason=f"real lab records not found under {REAL} "
+                                "(set MAGLEV_REFDATA to the shared refdata folder)")
+
+
+def test_dominant_mode_converts_discrete_poles():
+    Ts = 0.001
+    s = -30 + 80j
+    poles = np.exp(np.array([s, np.conj(s), -400.0]) * Ts)
+    wn, zeta = sim_vs_real.dominant_mode(poles, Ts)
+    assert wn == pytest.approx(abs(s)) and zeta == pytest.approx(30 / abs(s))
+
+
+def test_complex_modes_lists_every_pair_slowest_first_and_least_damped_picks_smallest_zeta():
+    Ts = 0.002
+    s1, s2 = -60 + 200j, -20 + 80j
+    poles = np.exp(np.array([s1, np.conj(s1), -5.0, s2, np.conj(s2)]) * Ts)
+    modes = sim_vs_real.complex_modes(poles, Ts)
+    assert [m[0] for m in modes] == pytest.approx([abs(s2), abs(s1)])
+    assert [m[1] for m in modes] == pytest.approx([20 / abs(s2), 60 / abs(s1)])
+    assert sim_vs_real.least_damped(modes) == modes[0]
+    assert np.isnan(sim_vs_real.least_damped([])[0])
+
+
+@needs_real
+@pytest.mark.realdata
+def test_defaults_reproduce_the_real_records():
+    cmp = sim_vs_real.compare(Levitator(zero_at_10=True), REAL, records=("binary_signal_3",),
+                              fourth_order_records=())
+    # static curve within 5 x the sensor noise std (rms over the 21 levels)
+    assert cmp.static_rms <= cmp.static_tolerance
+    std_r, peak_r, q_r = cmp.noise_real
+    std_s, peak_s, q_s = cmp.noise_sim
+    assert std_s == pytest.approx(std_r, rel=0.15)
+    assert 0.30 <= peak_r <= 0.34 and abs(peak_s - peak_r) < 0.01
+    assert q_s == pytest.approx(q_r, rel=1e-3)
+    assert cmp.rise_sim == pytest.approx(cmp.rise_real, rel=0.25)
+    assert cmp.alpha_sim == cmp.alpha_real
+    (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
+    assert wn_s == pytest.approx(wn_r, rel=0.2)
+    assert z_s == pytest.approx(z_r, rel=0.2)
+    assert "rms" in cmp.table()
+
+
+# ---------------------------------------------------------------------- dynamics and dry friction
+STD_FACTOR = 2.0  # every record's simulated output std within this factor of the real one
+# binary records whose dominant mode (ωn and ζ) the default simulator reproduces within 20 %;
+# binary_signal_1's ζ does not yet (see docs/simulator.md)
+MODES_MATCHED = ("binary_signal_2", "binary_signal_3", "binary_signal_4")
+
+
+@pytest.fixture(scope="module")
+def full_comparison():
+    return sim_vs_real.compare(Levitator(zero_at_10=True), REAL)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_response_to_binary_is_much_larger_than_to_white_noise_as_on_the_rig(full_comparison):
+    stds = full_comparison.stds
+    (bin_real, bin_sim), (wn_real, wn_sim) = stds["binary_signal_2"], stds["white_noise_4"]
+    # same 1.5-4 A range: a linear plant would give about 3x (input power at the resonance);
+    # the real rig gives ~20x, the dry friction makes the simulator's ratio at least 3x too
+    assert bin_real >= 3.0 * wn_real
+    assert bin_sim >= 3.0 * wn_sim
+    for rec, (real, sim) in stds.items():
+        assert 1.0 / STD_FACTOR <= sim / real <= STD_FACTOR, (rec, real, sim)
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.parametrize("record", MODES_MATCHED)
+def test_dominant_mode_of_binary_records_within_20_percent(full_comparison, record):
+    (wn_r, z_r), (wn_s, z_s) = full_comparison.modes[record]
+    assert wn_s == pytest.approx(wn_r, rel=0.2)
+    assert z_s == pytest.approx(z_r, rel=0.2)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_white_noise_mode_within_20_percent(full_comparison):
+    # small white noise over 1.5-4 A does not excite the 90 rad/s mode enough to identify it,
+    # on the rig or in the simulator; its least-damped identified mode is the second one
+    (wn_r, z_r), (wn_s, z_s) = full_comparison.white_noise_mode
+    assert 150 < wn_r < 300
+    assert wn_s == pytest.approx(wn_r, rel=0.2)
+    assert z_s == pytest.approx(z_r, rel=0.2)
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.parametrize("record", ["binary_signal_2", "binary_signal_3"])
+def test_fourth_order_models_show_both_lightly_damped_modes_on_rig_and_simulator(full_comparison, record):
+    for modes in full_comparison.fourth_order[record]:  # real, then simulated
+        slow = [m for m in modes if 60 < m[0] < 120 and m[1] < 0.5]
+        fast = [m for m in modes if 180 < m[0] < 260 and m[1] < 0.5]
+        assert slow and fast, (record, modes)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_damping_falls_with_amplitude_as_on_the_rig(full_comparison):
+    # α = .25 (large, slow motion) is less damped than α = .5 over the same range, as on the rig
+    modes = full_comparison.modes
+    for big, small in (("binary_signal_2", "binary_signal_3"), ("binary_signal_1", "binary_signal_4")):
+        assert modes[big][0][1] < modes[small][0][1]  # real
+        assert modes[big][1][1] < modes[small][1][1]  # simulated
