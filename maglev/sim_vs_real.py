@@ -17,7 +17,8 @@ order shows both on every record:
   ``white_noise_4`` (U(1.5, 4) A), decimated by 2 (``FOURTH_ORDERS``; nk = 5 is
   ``delayest`` on the decimated real ``white_noise_4``).  On white noise the 90 rad/s
   mode is not excited enough to be identified (the dry friction holds small motions
-  back), so its least-damped mode is the 215 rad/s one.
+  back), so its least-damped mode (pairs slower than 30 rad/s are drift or stick
+  plateaus and are skipped) is the 215 rad/s one.
 
 Frequencies are in rad/s of the 1 ms label the records carry.
 """
@@ -50,6 +51,7 @@ FOURTH_DECIMATION = 2
 WHITE_RECORD = "white_noise_4"  # white noise over the working region 1.5-4 A
 STATIC_NOISE_MULTIPLE = 5.0  # static-curve tolerance: rms <= this many noise std
 MODE_TOLERANCE = 0.2  # relative error of ωn and ζ counted as a match
+SLOWEST_RESONANCE = 30.0  # rad/s: slower identified pairs are drift or stick plateaus, not resonances
 # records whose output std shows the rig's amplitude dependence (notes §4.6)
 RECORD_INPUTS = {"binary_signal_1": "bin α.25 1.5-3 A", "binary_signal_2": "bin α.25 1.5-4 A",
                  "binary_signal_3": "bin α.5 1.5-4 A", "binary_signal_4": "bin α.5 1.5-3 A",
@@ -123,9 +125,10 @@ def fourth_order_modes_of(data: IOData) -> list[Mode]:
     return complex_modes(oe(d, *FOURTH_ORDERS).poles(), d.Ts)
 
 
-def least_damped(modes: list[Mode]) -> Mode:
-    """The mode with the smallest ζ (NaNs if there is none)."""
-    return min(modes, key=lambda m: m[1]) if modes else (math.nan, math.nan)
+def least_damped(modes: list[Mode], slowest: float = SLOWEST_RESONANCE) -> Mode:
+    """The mode with the smallest ζ among those with ωn >= ``slowest`` (NaNs if there is none)."""
+    resonances = [m for m in modes if m[0] >= slowest]
+    return min(resonances, key=lambda m: m[1]) if resonances else (math.nan, math.nan)
 
 
 def _within(sim: Mode, real: Mode) -> bool:

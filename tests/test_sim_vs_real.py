@@ -37,6 +37,8 @@ def test_complex_modes_lists_every_pair_slowest_first_and_least_damped_picks_sma
     assert [m[1] for m in modes] == pytest.approx([20 / abs(s2), 60 / abs(s1)])
     assert sim_vs_real.least_damped(modes) == modes[0]
     assert np.isnan(sim_vs_real.least_damped([])[0])
+    drift = (3.0, 0.001)  # a slow, barely damped pair is drift, not the resonance asked for
+    assert sim_vs_real.least_damped([drift] + modes) == modes[0]
 
 
 @needs_real
