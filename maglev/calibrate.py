@@ -38,9 +38,8 @@ from maglev.data import IOData
 from maglev.plant import Levitator, LevitatorParams
 from maglev.refdata import load_record, refdata_dir
 from maglev.sim_vs_real import (POLE_RECORDS, STAIR_LEVELS, STAIR_TAIL, STATIC_NOISE_MULTIPLE, STD_RECORDS,
-                                TRANSIENT_FRACTION,
-                                compare, dominant_mode_of, noise_psd, quantisation_step, stair_averages,
-                                stair_step)
+                                TRANSIENT_FRACTION, compare, dominant_mode_of, noise_psd, quantisation_step,
+                                stair_averages, stair_step)
 
 __all__ = ["fit_static", "fit_noise", "fit_dynamics", "fit_friction", "friction_targets", "main"]
 

@@ -38,7 +38,7 @@ from maglev.estimate import oe
 from maglev.plant import Levitator
 from maglev.refdata import load_record
 
-__all__ = ["Comparison", "compare", "dominant_mode", "complex_modes", "dominant_mode_of",
+__all__ = ["Comparison", "compare", "dominant_mode", "complex_modes", "least_damped", "dominant_mode_of",
            "fourth_order_modes_of", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
@@ -231,30 +231,22 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     sim_stair = lev.simulate(stair.u, Ts=stair.Ts, seed=seed)
     u_bar, y_real = stair_averages(stair)
     _, y_sim = stair_averages(sim_stair)
-    const = load_record("binary_signal_9", root)
-    wn = load_record(WHITE_RECORD, root)
-    sim_wn = lev.simulate(wn.u, Ts=wn.Ts, seed=seed)
-    modes, stds, fourth = {}, {rec: None for rec in std_records}, {}
-    for rec in dict.fromkeys(records + std_records + fourth_order_records):
+    pairs = {}  # record -> (real, simulated), each simulated once
+    for rec in dict.fromkeys(records + std_records + fourth_order_records + (WHITE_RECORD, "binary_signal_9")):
         real = load_record(rec, root)
-        sim = lev.simulate(real.u, Ts=real.Ts, seed=seed)
-        if rec in records:
-            modes[rec] = (dominant_mode_of(real), dominant_mode_of(sim))
-        if rec in std_records:
-            stds[rec] = (float(np.std(real.trim(TRANSIENT_FRACTION).y)),
-                         float(np.std(sim.trim(TRANSIENT_FRACTION).y)))
-        if rec in fourth_order_records:
-            fourth[rec] = (fourth_order_modes_of(real), fourth_order_modes_of(sim))
+        pairs[rec] = (real, lev.simulate(real.u, Ts=real.Ts, seed=seed))
+    modes = {rec: tuple(dominant_mode_of(d) for d in pairs[rec]) for rec in records}
+    stds = {rec: tuple(float(np.std(d.trim(TRANSIENT_FRACTION).y)) for d in pairs[rec]) for rec in std_records}
+    fourth = {rec: tuple(fourth_order_modes_of(d) for d in pairs[rec]) for rec in fourth_order_records}
     (rise_r, over_r), (rise_s, over_s) = stair_step(stair), stair_step(sim_stair)
 
     def alpha(d: IOData) -> float:
         return ex.choose_alpha(ex.output_spectrum(d.trim(TRANSIENT_FRACTION).y).band).alpha_star
 
-    sim_const = lev.simulate(const.u, Ts=const.Ts, seed=seed)
-
     def startup(d: IOData) -> tuple[float, float]:
         return float(d.y[:1000].max()), float(d.trim(TRANSIENT_FRACTION).y.mean())
 
+    (const, sim_const), (wn, sim_wn) = pairs["binary_signal_9"], pairs[WHITE_RECORD]
     return Comparison(
         u_bar=u_bar, y_real=y_real, y_sim=y_sim,
         noise_real=_noise_numbers(const),
