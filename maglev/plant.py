@@ -26,8 +26,8 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
 6-7 ms of physical time (notes §5).  By default the simulator reproduces the
 records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
-of physics with ``time_scale = t_phys / 1 ms`` (5.701, fitted by ``maglev.calibrate``
-together with the friction), so a 60 s-labelled record covers about 340 s of physics
+of physics with ``time_scale = t_phys / 1 ms`` (5.852, fitted by ``maglev.calibrate``
+together with the friction), so a 60 s-labelled record covers about 350 s of physics
 and the transients have the real records' length in samples.  With
 ``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
 sample), and its transients are about 6 times longer in samples.
@@ -63,22 +63,22 @@ class LevitatorParams:
     kappa: float = 0.1965  # coil pull on the upper magnet relative to the push on the lower one
     c: float = 2.21e4  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
     d: float = 4.2  # cm, offset of the repulsion law
-    gamma_lower: float = 2.443  # N s/m, viscous friction of the lower magnet
-    gamma_upper: float = 0.06644  # N s/m, viscous friction of the upper magnet
-    coulomb_lower: float = 0.009201  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
-    coulomb_upper: float = 0.05755  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
-    stiction_lower: float = 0.4258  # N, extra friction at low speed (Stribeck peak) on the lower magnet
-    stiction_upper: float = 0.06662  # N, extra friction at low speed (Stribeck peak) on the upper magnet
-    v_stribeck: float = 1.139  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
-    v_creep: float = 0.7118  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
+    gamma_lower: float = 2.629  # N s/m, viscous friction of the lower magnet
+    gamma_upper: float = 0.07442  # N s/m, viscous friction of the upper magnet
+    coulomb_lower: float = 0.006933  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
+    coulomb_upper: float = 0.05094  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
+    stiction_lower: float = 0.3606  # N, extra friction at low speed (Stribeck peak) on the lower magnet
+    stiction_upper: float = 0.08819  # N, extra friction at low speed (Stribeck peak) on the upper magnet
+    v_stribeck: float = 1.316  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
+    v_creep: float = 0.713  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
     h_top: float = 12.0  # cm, top stop of the upper magnet (the upper coil)
     i_sat: float = 3.899  # A, current-regulator saturation
     delay: float = 0.0  # s (physical), pure input delay beyond the one-sample read-then-write lag
-    t_phys: float = 0.005701  # s of physics per logged sample labelled 1 ms
+    t_phys: float = 0.005852  # s of physics per logged sample labelled 1 ms
     y_off: float = 0.4505  # cm, reading y = y_off + h
     noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
     noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
-    noise_line_hz: float = 119.91  # Hz, ripple frequency (aliased by the logging rate)
+    noise_line_hz: float = 116.81  # Hz, ripple frequency (aliased by the logging rate)
     noise_line_radius: float = 0.9198  # pole radius of the AR(2) line (its sharpness)
     quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
     force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
@@ -150,7 +150,7 @@ class Levitator:
     """The levitator rig: ``simulate`` a command record, find ``equilibrium``, ``linearize``.
 
     ``physical_time=False`` (default) reproduces the lab's records as labelled: every
-    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (5.701 ms for Ts = 1 ms).
+    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (5.852 ms for Ts = 1 ms).
     ``physical_time=True`` integrates exactly ``Ts`` of physics per sample.
     ``zero_at_10=True`` reproduces the lab logger's quirk of writing 0 A for any
     command >= 10 A (the 10 A level of the real staircase reads as 0 A).

@@ -38,7 +38,7 @@ from maglev.estimate import oe
 from maglev.plant import Levitator
 from maglev.refdata import load_record
 
-__all__ = ["Comparison", "compare", "dominant_mode", "complex_modes", "least_damped", "dominant_mode_of",
+__all__ = ["Mode", "Comparison", "compare", "dominant_mode", "complex_modes", "least_damped", "dominant_mode_of",
            "fourth_order_modes_of", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
@@ -51,6 +51,7 @@ FOURTH_DECIMATION = 2
 WHITE_RECORD = "white_noise_4"  # white noise over the working region 1.5-4 A
 STATIC_NOISE_MULTIPLE = 5.0  # static-curve tolerance: rms <= this many noise std
 MODE_TOLERANCE = 0.2  # relative error of ωn and ζ counted as a match
+RISE_TOLERANCE = 0.25  # relative error of the rise time counted as agreement (same decimation advice)
 SLOWEST_RESONANCE = 30.0  # rad/s: slower identified pairs are drift or stick plateaus, not resonances
 # records whose output std shows the rig's amplitude dependence (notes §4.6)
 RECORD_INPUTS = {"binary_signal_1": "bin α.25 1.5-3 A", "binary_signal_2": "bin α.25 1.5-4 A",

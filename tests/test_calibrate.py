@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from maglev import calibrate, refdata
+from maglev import calibrate, refdata, sim_vs_real
 from maglev.plant import Levitator
 from maglev.sim_vs_real import stair_averages
 
@@ -38,15 +38,32 @@ def test_static_fit_recovers_a_curve_close_to_the_real_one():
 # ---------------------------------------------------------------------- dry friction (issue #3)
 @needs_real
 @pytest.mark.realdata
-def test_friction_defaults_beat_the_viscous_only_calibration_on_the_fit_objective():
+def test_friction_defaults_meet_every_scored_check_and_beat_the_viscous_only_calibration():
     targets = calibrate.friction_targets(REAL)
     fitted = Levitator(zero_at_10=True)
+    errors, penalty = calibrate.friction_errors(fitted, targets)
+    # ωn and ζ of five identified modes and the rise time, each within its tolerance
+    assert len(errors) == 11 and max(errors.values()) <= 1.0, errors
+    assert penalty == 0.0
     viscous = fitted.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0,
                                  gamma_lower=10.79, gamma_upper=1.009, t_phys=6.575e-3, noise_line_hz=103.96)
-    r_fit = calibrate._friction_residual(fitted, targets)
-    r_visc = calibrate._friction_residual(viscous, targets)
-    assert r_fit @ r_fit < 0.5 * (r_visc @ r_visc)
+    cost_fit = calibrate.friction_cost(fitted, targets)
+    assert cost_fit <= 1.0 < calibrate.friction_cost(viscous, targets)
     # one evaluation of the fit itself runs and returns a plant (maxfev=1: the start)
     out = calibrate.fit_friction(fitted, REAL, maxfev=1, targets=targets)
     for name in calibrate.FRICTION_PARAMS:
         assert getattr(out.params, name) == pytest.approx(getattr(fitted.params, name), rel=1e-12)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_friction_errors_are_the_printed_comparison_scaled_by_its_tolerances():
+    # the fit scores exactly what `python -m maglev.calibrate` prints and the done-when checks
+    lev = Levitator(zero_at_10=True).with_params(coulomb_upper=0.04)  # not the defaults
+    errors, _ = calibrate.friction_errors(lev, calibrate.friction_targets(REAL))
+    cmp = sim_vs_real.compare(lev, REAL, records=("binary_signal_3",), std_records=(), fourth_order_records=())
+    (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
+    tol = sim_vs_real.MODE_TOLERANCE
+    assert errors["binary_signal_3 wn"] == pytest.approx(abs(wn_s / wn_r - 1) / tol)
+    assert errors["binary_signal_3 zeta"] == pytest.approx(abs(z_s / z_r - 1) / tol)
+    assert errors["rise time"] == pytest.approx(abs(cmp.rise_sim / cmp.rise_real - 1) / sim_vs_real.RISE_TOLERANCE)

@@ -13,6 +13,7 @@ from maglev import labdata
 from maglev.data import IOData
 from maglev.plant import Levitator
 from maglev.signals import rbs_spectrum, staircase
+from maglev.sim_vs_real import RISE_TOLERANCE
 
 REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[1].parent / "shared" / "refdata"))
 KTH = REAL / "el2820_maglev_2022"
@@ -98,7 +99,7 @@ def test_rise_time_and_alpha_agree_between_real_and_simulated_records(sim_stair)
     real = IOData.from_mat(KTH / "working_region.mat")
     r_real = ex.rise_time(real, u_range=(1.5, 4.0))
     r_sim = ex.rise_time(sim_stair, u_range=(1.5, 4.0))
-    assert r_sim.samples == pytest.approx(r_real.samples, rel=0.25)
+    assert r_sim.samples == pytest.approx(r_real.samples, rel=RISE_TOLERANCE)
     assert r_sim.decimation == r_real.decimation
     wn = IOData.from_mat(KTH / "white_noise_4.mat").trim(0.25)
     wn_sim = Levitator().simulate(wn.u, seed=2)
