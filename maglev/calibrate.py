@@ -41,7 +41,7 @@ from maglev.refdata import load_record, refdata_dir
 from maglev.sim_vs_real import (MODE_TOLERANCE, POLE_RECORDS, RISE_TOLERANCE, STAIR_LEVELS, STAIR_TAIL,
                                 STATIC_NOISE_MULTIPLE, STD_RECORDS, TRANSIENT_FRACTION, WHITE_RECORD, Mode,
                                 compare, dominant_mode_of, fourth_order_modes_of, least_damped, noise_psd,
-                                quantisation_step, stair_averages, stair_step)
+                                output_std, quantisation_step, stair_averages, stair_step)
 
 __all__ = ["fit_static", "fit_noise", "fit_dynamics", "fit_friction", "friction_targets", "friction_errors",
            "friction_cost", "main"]
@@ -148,10 +148,10 @@ def friction_targets(root: Path | None = None) -> FrictionTargets:
     inputs = {r: load_record(r, root) for r in STD_RECORDS}
     stair = load_record("working_region", root)
     rise, _ = stair_step(stair)
-    noise_std = float(np.std(load_record("binary_signal_9", root).trim(TRANSIENT_FRACTION).y))
+    noise_std = output_std(load_record("binary_signal_9", root))
     return FrictionTargets(
         inputs=inputs,
-        std={r: float(np.std(d.trim(TRANSIENT_FRACTION).y)) for r, d in inputs.items()},
+        std={r: output_std(d) for r, d in inputs.items()},
         modes={r: dominant_mode_of(inputs[r]) for r in POLE_RECORDS},
         second_mode=least_damped(fourth_order_modes_of(inputs[WHITE_RECORD])),
         stair=stair, y_bar=stair_averages(stair)[1], static_tolerance=STATIC_NOISE_MULTIPLE * noise_std,
@@ -185,7 +185,7 @@ def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple
 
     for rec, real in tg.inputs.items():
         sim = lev.simulate(real.u, Ts=real.Ts, seed=seed)
-        ratio = max(float(np.std(sim.trim(TRANSIENT_FRACTION).y)), 1e-6) / tg.std[rec]
+        ratio = max(output_std(sim), 1e-6) / tg.std[rec]
         penalty += 100.0 * max(0.0, abs(math.log(ratio)) - math.log(STD_FIT_FACTOR)) ** 2
         try:
             if rec in tg.modes:

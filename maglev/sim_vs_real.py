@@ -39,7 +39,7 @@ from maglev.plant import Levitator
 from maglev.refdata import load_record
 
 __all__ = ["Mode", "Comparison", "compare", "dominant_mode", "complex_modes", "least_damped", "dominant_mode_of",
-           "fourth_order_modes_of", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
+           "fourth_order_modes_of", "output_std", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
 STAIR_TAIL = 50.0
@@ -87,10 +87,15 @@ def quantisation_step(y: np.ndarray) -> float:
     return float(steps[steps > 1e-9].min())
 
 
+def output_std(data: IOData) -> float:
+    """Std of the reading after dropping the start-up transient (``TRANSIENT_FRACTION``) [cm]."""
+    return float(np.std(data.trim(TRANSIENT_FRACTION).y))
+
+
 def _noise_numbers(data: IOData) -> tuple[float, float, float]:
     y = data.trim(TRANSIENT_FRACTION).y
     f, psd = noise_psd(y)
-    return float(np.std(y)), float(f[np.argmax(psd)]), quantisation_step(y)
+    return output_std(data), float(f[np.argmax(psd)]), quantisation_step(y)
 
 
 # ---------------------------------------------------------------------- identified modes
@@ -237,7 +242,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         real = load_record(rec, root)
         pairs[rec] = (real, lev.simulate(real.u, Ts=real.Ts, seed=seed))
     modes = {rec: tuple(dominant_mode_of(d) for d in pairs[rec]) for rec in records}
-    stds = {rec: tuple(float(np.std(d.trim(TRANSIENT_FRACTION).y)) for d in pairs[rec]) for rec in std_records}
+    stds = {rec: tuple(output_std(d) for d in pairs[rec]) for rec in std_records}
     fourth = {rec: tuple(fourth_order_modes_of(d) for d in pairs[rec]) for rec in fourth_order_records}
     (rise_r, over_r), (rise_s, over_s) = stair_step(stair), stair_step(sim_stair)
 
