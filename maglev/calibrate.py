@@ -34,7 +34,6 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize, signal
 
-from maglev import experiments as ex
 from maglev.data import IOData
 from maglev.plant import Levitator, LevitatorParams
 from maglev.refdata import load_record, refdata_dir
@@ -254,6 +253,9 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
 def _save_figures(lev: Levitator, root: Path | None, out: Path) -> None:
     from matplotlib.figure import Figure
 
+    from maglev.lab.plots import plot_working_region
+    from maglev.lab.working_region import working_region
+
     out.mkdir(parents=True, exist_ok=True)
     stair = load_record("working_region", root)
     sim = lev.simulate(stair.u, Ts=stair.Ts, seed=1)
@@ -261,7 +263,7 @@ def _save_figures(lev: Levitator, root: Path | None, out: Path) -> None:
     ax1, ax2 = fig.subplots(1, 2)
     for d, label in ((stair, "real"), (sim, "sim")):
         ax1.plot(d.t, d.y, lw=0.7, label=label)
-        ex.working_region(d.u, d.y, STAIR_LEVELS, STAIR_TAIL).plot(ax2)
+        plot_working_region(working_region(d.u, d.y, STAIR_LEVELS, STAIR_TAIL), ax2)
     ax1.set_xlabel("t [s, as labelled]")
     ax1.set_ylabel("y [cm]")
     ax1.legend()

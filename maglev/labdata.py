@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.io import savemat
 
-from maglev import signals
+from maglev.lab import signals
 from maglev.data import IOData
 from maglev.plant import LABEL_TS, U_MAX, U_MIN, Levitator
 

@@ -2,18 +2,18 @@
 
 Why: calibration, its comparison and the tests all need the same record names,
 variable names and search path, and the records must never be copied into the
-repository.  ``refdata_dir()`` is ``$MAGLEV_REFDATA`` or ``../shared/refdata`` next to
-the repository, or None when neither exists (then callers skip or say so).
+repository.  The folder is :func:`maglev.paths.refdata_dir` (``$MAGLEV_REFDATA`` or
+``../shared/refdata`` next to the checkout; None when absent: callers skip or say so).
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from maglev.data import IOData
+from maglev.paths import refdata_dir
 
-__all__ = ["KTH_2022", "RECORDS", "refdata_dir", "load_record"]
+__all__ = ["KTH_2022", "RECORDS", "load_record"]
 
 KTH_2022 = "el2820_maglev_2022"
 # record name -> (input variable, output variable, Ts if the file lacks it)
@@ -26,13 +26,6 @@ RECORDS: dict[str, tuple[str, str, float | None]] = {
     "white_noise_3": ("u", "y", None),
     "white_noise_4": ("u", "y", None),
 }
-
-
-def refdata_dir() -> Path | None:
-    """``$MAGLEV_REFDATA`` or ``<repo>/../shared/refdata``; None if it does not exist."""
-    env = os.environ.get("MAGLEV_REFDATA")
-    root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "refdata"
-    return root if root.is_dir() else None
 
 
 def load_record(name: str, root: Path | None = None) -> IOData:

@@ -32,7 +32,9 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from maglev import experiments as ex
+from maglev.lab.averages import get_stationary_averages
+from maglev.lab.input_design import choose_alpha, output_spectrum
+from maglev.lab.sampling import rise_time
 from maglev.data import IOData
 from maglev.estimate import oe
 from maglev.plant import Levitator
@@ -66,13 +68,13 @@ Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 # ---------------------------------------------------------------------- the lab's numbers
 def stair_averages(data: IOData) -> tuple[np.ndarray, np.ndarray]:
     """Stationary averages (ū, ȳ) of the 21-level staircase."""
-    return (ex.get_stationary_averages(data.u, STAIR_LEVELS, STAIR_TAIL),
-            ex.get_stationary_averages(data.y, STAIR_LEVELS, STAIR_TAIL))
+    return (get_stationary_averages(data.u, STAIR_LEVELS, STAIR_TAIL),
+            get_stationary_averages(data.y, STAIR_LEVELS, STAIR_TAIL))
 
 
 def stair_step(data: IOData, u_range: tuple[float, float] = (1.5, 4.0)) -> tuple[float, float]:
     """(rise time [samples], overshoot [fraction]) of the mean normalised stair step in ``u_range``."""
-    rt = ex.rise_time(data, u_range=u_range)
+    rt = rise_time(data, u_range=u_range)
     return rt.samples, float(rt.response.max() - 1.0)
 
 
@@ -247,7 +249,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     (rise_r, over_r), (rise_s, over_s) = stair_step(stair), stair_step(sim_stair)
 
     def alpha(d: IOData) -> float:
-        return ex.choose_alpha(ex.output_spectrum(d.trim(TRANSIENT_FRACTION).y).band).alpha_star
+        return choose_alpha(output_spectrum(d.trim(TRANSIENT_FRACTION).y).band).alpha_star
 
     def startup(d: IOData) -> tuple[float, float]:
         return float(d.y[:1000].max()), float(d.trim(TRANSIENT_FRACTION).y.mean())

@@ -10,7 +10,7 @@ import pytest
 
 matplotlib.use("Agg")  # before anything imports pyplot (python-control does)
 
-from maglev.refdata import refdata_dir  # noqa: E402
+from maglev.paths import refdata_dir  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 

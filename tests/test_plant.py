@@ -10,7 +10,7 @@ from scipy import signal
 
 from maglev.estimate import arx
 from maglev.plant import Levitator, LevitatorParams, _friction
-from maglev.signals import random_binary
+from maglev.lab.signals import random_binary
 
 
 def _forces(p: LevitatorParams, current: float, z: float, h: float) -> tuple[float, float]:

@@ -1,4 +1,4 @@
-"""Tests of maglev.signals: the lab's input signals and the binary signal's spectrum."""
+"""Tests of maglev.lab.signals: the lab's input signals and the binary signal's spectrum."""
 
 import re
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from maglev.signals import random_binary, rbs_spectrum, staircase, step, uniform_noise
+from maglev.lab.signals import random_binary, rbs_spectrum, staircase, step, uniform_noise
 
 
 @pytest.mark.parametrize("alpha", [0.1, 0.25, 0.5, 0.75, 0.9])

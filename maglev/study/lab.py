@@ -11,7 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from maglev.data import IOData
-from maglev.experiments import choose_alpha, output_spectrum, rise_time, working_region
+from maglev.lab.input_design import choose_alpha, output_spectrum
+from maglev.lab.sampling import rise_time
+from maglev.lab.working_region import working_region
 from maglev.study.datasets import load
 
 
@@ -46,8 +48,10 @@ def lab_steps(cfg: dict) -> tuple[dict, dict, dict]:
         "lab.Ts_min": rt.ts_range[0], "lab.Ts_max": rt.ts_range[1], "lab.decimation": rt.decimation,
         "lab.band_low": spec.band[0], "lab.band_high": spec.band[1], "lab.alpha_star": alpha.alpha_star,
     }
-    figures = {"working_region.png": wr.plot(), "rise_time.png": rt.plot(),
-               "output_spectrum.png": spec.plot(), "alpha.png": alpha.plot()}
+    from maglev.lab import plots
+
+    figures = {"working_region.png": plots.plot_working_region(wr), "rise_time.png": plots.plot_rise_time(rt),
+               "output_spectrum.png": plots.plot_output_spectrum(spec), "alpha.png": plots.plot_alpha(alpha)}
     figures["output_spectrum.png"].axes[0].set_title(f"Output spectrum of {prep.name}", fontsize="medium")
     summary = {"staircase": lab["staircase_file"] or "simulated working_region",
                "spectrum_dataset": prep.name, **metrics,

@@ -1,0 +1,90 @@
+"""Figures of the lab steps (the lab's Figs. 3-5), drawn on ``Figure`` objects made without pyplot.
+
+Each step computes a result (:mod:`maglev.lab.working_region`, :mod:`~maglev.lab.sampling`,
+:mod:`~maglev.lab.input_design`) and these functions draw it — python-control's split
+of computing a response and plotting it — so computing a step never imports matplotlib.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from maglev.lab.input_design import AlphaChoice, OutputSpectrum
+from maglev.lab.sampling import RiseTime
+from maglev.lab.signals import rbs_spectrum
+from maglev.lab.working_region import WorkingRegion
+
+__all__ = ["plot_working_region", "plot_rise_time", "plot_output_spectrum", "plot_alpha"]
+
+
+def _axes(ax: Axes | None) -> Axes:
+    return Figure(figsize=(6, 4), layout="constrained").add_subplot() if ax is None else ax
+
+
+def plot_working_region(r: WorkingRegion, ax: Axes | None = None) -> Figure:
+    """ȳ vs ū with the fitted line and the region's bounds and centre (the lab's Fig. 3)."""
+    ax = _axes(ax)
+    inside = slice(r.lo, r.hi + 1)
+    ax.plot(r.u_bar, r.y_bar, "s", mfc="none", color="tab:red", label="stationary averages")
+    uu = np.array([r.u_min, r.u_max])
+    ax.plot(uu, r.slope * uu + r.intercept, "k-", label=f"LS line, slope {r.slope:.3g}")
+    ax.plot(r.u_bar[inside], r.y_bar[inside], "s", color="tab:red")
+    for edge in uu:
+        ax.axvline(edge, color="k", lw=0.8)
+    ax.axvline(r.u_star, color="k", ls=":", label=f"working point {r.u_star:.3g}")
+    ax.set_xlabel("step level ū")
+    ax.set_ylabel("stationary output ȳ")
+    ax.set_title(f"Working region [{r.u_min:.3g}, {r.u_max:.3g}]")
+    ax.legend(loc="best", fontsize="small")
+    return ax.figure
+
+
+def plot_rise_time(r: RiseTime, ax: Axes | None = None) -> Figure:
+    """The averaged normalised step response with the 10 % and 90 % crossings (the lab's Fig. 4)."""
+    ax = _axes(ax)
+    ax.plot(np.arange(r.response.size), r.response, color="tab:blue",
+            label=f"mean of {r.n_steps} normalised steps")
+    for level, t in ((0.1, r.t10), (0.9, r.t90)):
+        ax.axhline(level, color="k", lw=0.6, ls=":")
+        ax.axvline(t, color="tab:red", lw=0.8)
+    ax.set_xlabel("samples after the step")
+    ax.set_ylabel("normalised output")
+    ax.set_title(f"Rise time {r.samples:.1f} samples = {r.seconds * 1e3:.3g} ms; "
+                 f"decimate by {r.decimation}")
+    ax.legend(loc="lower right", fontsize="small")
+    return ax.figure
+
+
+def plot_output_spectrum(r: OutputSpectrum, ax: Axes | None = None) -> Figure:
+    """|Y| against normalised frequency with the energy band shaded."""
+    ax = _axes(ax)
+    ax.semilogy(r.w / np.pi, r.magnitude, lw=0.6, color="tab:blue", label="|FFT(y - mean y)|")
+    ax.axvspan(r.band[0] / np.pi, r.band[1] / np.pi, color="tab:orange", alpha=0.3,
+               label=f"{r.fraction:.0%} of the energy")
+    ax.set_xlabel("ω / π  (1 = Nyquist)")
+    ax.set_ylabel("|Y|")
+    ax.legend(loc="best", fontsize="small")
+    return ax.figure
+
+
+def plot_alpha(r: AlphaChoice, ax: Axes | None = None) -> Figure:
+    """Binary-signal spectra for each α with the output's energy band shaded (the lab's Fig. 5)."""
+    ax = _axes(ax)
+    w = np.linspace(1e-3, np.pi - 1e-3, 600)
+    for alpha, share in zip(r.alphas, r.shares):
+        style = "-" if alpha == r.alpha_star else "--"
+        if 0 < alpha < 1:
+            ax.plot(w / np.pi, rbs_spectrum(alpha, w), style, label=f"α = {alpha:g} ({share:.0%} in band)")
+        else:
+            where = 0.0 if alpha == 0 else 1.0
+            ax.axvline(where, ls=style, color="gray", label=f"α = {alpha:g}: line at ω = {where:g}π")
+    ax.axvspan(r.band[0] / np.pi, r.band[1] / np.pi, color="tab:orange", alpha=0.3,
+               label="output energy band")
+    ax.set_yscale("log")
+    ax.set_xlabel("ω / π")
+    ax.set_ylabel("Φ_s(ω)")
+    ax.set_title(f"α* = {r.alpha_star:g}")
+    ax.legend(loc="best", fontsize="small")
+    return ax.figure

@@ -1,0 +1,61 @@
+"""The lab steps' figures draw the numbers of the results they are given."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.patches import Polygon, Rectangle
+
+from maglev.data import IOData
+from maglev.lab import plots
+from maglev.lab.input_design import choose_alpha, output_spectrum
+from maglev.lab.sampling import rise_time
+from maglev.lab.signals import staircase
+from maglev.lab.working_region import working_region
+
+
+def _vertical_lines(ax) -> list[float]:
+    return sorted(float(x[0]) for line in ax.get_lines() for x in [line.get_xdata()]
+                  if len(x) == 2 and x[0] == x[1])
+
+
+def _span(ax) -> tuple[float, float]:
+    [patch] = [p for p in ax.patches if isinstance(p, (Polygon, Rectangle))]
+    xs = patch.get_xy()[:, 0] if isinstance(patch, Polygon) else [patch.get_x(), patch.get_x() + patch.get_width()]
+    return float(min(xs)), float(max(xs))
+
+
+def test_working_region_figure_marks_the_region_and_the_working_point():
+    u_levels = np.arange(0, 11, 1.0)
+    y_levels = np.clip(u_levels, 3, 7) * 2.0
+    wr = working_region(staircase(u_levels, 20), staircase(y_levels, 20), 11, 50)
+    ax = plots.plot_working_region(wr).axes[0]
+    assert _vertical_lines(ax) == [3.0, 5.0, 7.0]  # u_min, u*, u_max
+    filled = [ln for ln in ax.get_lines() if ln.get_marker() == "s" and ln.get_markerfacecolor() != "none"]
+    assert list(filled[0].get_xdata()) == list(wr.u_bar[wr.lo:wr.hi + 1])
+    assert "[3, 7]" in ax.get_title()
+
+
+def test_rise_time_figure_draws_the_averaged_response_and_its_crossings():
+    k = np.arange(300)
+    resp = 1 - np.exp(-k / 15.0)
+    u = np.r_[np.zeros(300), np.ones(300)]
+    rt = rise_time(IOData(u, np.r_[np.zeros(300), resp], 0.001))
+    ax = plots.plot_rise_time(rt).axes[0]
+    curve = ax.get_lines()[0]
+    assert np.array_equal(curve.get_ydata(), rt.response)
+    assert _vertical_lines(ax) == pytest.approx(sorted([rt.t10, rt.t90]))
+    assert f"decimate by {rt.decimation}" in ax.get_title()
+
+
+def test_spectrum_and_alpha_figures_shade_the_energy_band():
+    n = 4096
+    y = np.sin(2 * np.pi * 200 / n * np.arange(n))
+    spec = output_spectrum(y, fraction=0.8)
+    ax = plots.plot_output_spectrum(spec).axes[0]
+    assert _span(ax) == pytest.approx((spec.band[0] / np.pi, spec.band[1] / np.pi))
+    choice = choose_alpha((0.2, 0.9))
+    ax = plots.plot_alpha(choice).axes[0]
+    assert _span(ax) == pytest.approx((0.2 / np.pi, 0.9 / np.pi))
+    solid = [ln.get_label() for ln in ax.get_lines() if ln.get_linestyle() == "-"]
+    assert solid == [f"α = {choice.alpha_star:g} ({max(choice.shares):.0%} in band)"]
