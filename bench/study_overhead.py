@@ -32,6 +32,8 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from maglev.estimate import estimate  # noqa: E402
 from maglev.study import datasets, identify as ident, tracking  # noqa: E402
+from maglev.study.config import config_hash, flatten  # noqa: E402
+from maglev.study.figures import run_figures  # noqa: E402
 from maglev.validate import compare, resid  # noqa: E402
 
 STEPS = ("data", "estimate", "validate", "figures", "png-encode", "track:query", "track:run+params",
@@ -74,7 +76,7 @@ def one_run(cfg: dict, client, exp_id: str) -> dict[str, float]:
     true_sys = ident.true_plant(prep)
     metrics = {"val_fit": fit, "val_fit_sim": fit_sim, **ident.true_distance(model, true_sys)}
     lap("validate")
-    figs = ident.draw(prep, model, rr, yhat, ysim, fit, fit_sim, true_sys, 1)
+    figs = run_figures(prep, model, rr, yhat, ysim, fit, fit_sim, true_sys, 1)
     lap("figures")
     tmp = Path(tempfile.mkdtemp(prefix="bench-png-"))
     pngs = {}
@@ -82,11 +84,11 @@ def one_run(cfg: dict, client, exp_id: str) -> dict[str, float]:
         f.savefig(tmp / k, dpi=90)
         pngs[f"figures/{k}"] = tmp / k
     lap("png-encode")
-    chash = tracking.config_hash(cfg)
+    chash = config_hash(cfg)
     tracking.finished_run(client, exp_id, chash)
     lap("track:query")
     run_id = client.create_run(exp_id, run_name=ident.run_label(cfg), tags={"config_hash": chash}).info.run_id
-    tracking.log_batch(client, run_id, params=tracking.flatten(cfg))
+    tracking.log_batch(client, run_id, params=flatten(cfg))
     lap("track:run+params")
     files = dict(pngs)
     files.update({"model/model.json": model.to_json(), "resid/resid.json": rr.to_dict(),

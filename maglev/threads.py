@@ -7,7 +7,7 @@ measured at 1.6 ms single-threaded and 9–40 ms with two OpenBLAS threads under
 load.  ``single_threaded_blas`` limits BLAS to one thread for the duration of one
 estimation, without touching the caller's settings elsewhere.  A study run uses it
 too, so its metrics are bit-identical whether a joblib worker (where loky already
-caps BLAS at one thread) or a plain process (``maglev.reproduce``) computes them.
+caps BLAS at one thread) or a plain process (``maglev reproduce``) computes them.
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ BENCH = Path(__file__).resolve().parents[1] / "bench"
 @pytest.mark.parametrize("script, args, expect", [
     ("estimators.py", ["--quick", "--no-peers", "--reps", "1"], "target"),
     ("study_overhead.py", ["--repeats", "1", "--duration", "3", "--structures", "arx,oe"], "track+plot share"),
+    ("simulator.py", ["--repeats", "1"], "Levitator.simulate"),
 ])
 def test_benchmark_script_runs(tmp_path, script, args, expect):
     proc = subprocess.run([sys.executable, str(BENCH / script), *args], capture_output=True, text=True,

@@ -1,17 +1,23 @@
 """The declarative study: Hydra sweeps of datasets × structures × orders, tracked in MLflow.
 
-One module per job, so each stays short:
+Hydra, OmegaConf and MLflow are imported only in this package.  One module per job:
 
-* :mod:`~maglev.study.schema`   structured-config schemas (typos and wrong types fail early)
-* :mod:`~maglev.study.datasets` dataset loading and preprocessing (no Hydra, no MLflow)
-* :mod:`~maglev.study.identify` one identification run → model, metrics, figures (no Hydra, no MLflow)
-* :mod:`~maglev.study.figures`  the run's PNG figures (matplotlib only)
-* :mod:`~maglev.study.lab`      the lab-level steps logged once per sweep (no Hydra, no MLflow)
-* :mod:`~maglev.study.tracking` everything MLflow: store, experiment, hashing, logging, queries
-* :mod:`~maglev.study.job`      one Hydra job = one MLflow run (skip, fail, finish)
-* :mod:`~maglev.study.callback` the sweep's parent run (Hydra callback)
-* :mod:`~maglev.study.reap`     mark runs left RUNNING by dead processes as KILLED
+* :mod:`~maglev.study.schema`    structured-config schemas (typos and wrong types fail at composition)
+* :mod:`~maglev.study.config`    the resolved config as plain data: checks, identity (hash), params
+* :mod:`~maglev.study.datasets`  dataset loading and preprocessing (no Hydra, no MLflow)
+* :mod:`~maglev.study.identify`  one identification run → model, metrics (no Hydra, no MLflow)
+* :mod:`~maglev.study.figures`   the study's figures: a run's four, the ranking's, orders (matplotlib)
+* :mod:`~maglev.study.lab`       the lab-level steps logged once per sweep (no Hydra, no MLflow)
+* :mod:`~maglev.study.tracking`  MLflow, writing side: store, experiment, logging, queries
+* :mod:`~maglev.study.store`     MLflow, reading side: a sweep's parent, runs and artifacts
+* :mod:`~maglev.study.job`       one Hydra job = one MLflow run (skip, fail, finish)
+* :mod:`~maglev.study.callbacks` the sweep's parent run and its end-of-sweep ranking (Hydra callbacks)
+* :mod:`~maglev.study.ranking`   rank a sweep, the lab's comparisons, the ranking run
+* :mod:`~maglev.study.report`    the lab report (HTML), one function per section in ``report.sections``
+* :mod:`~maglev.study.reproduce` recompute a run from its logged config
+* :mod:`~maglev.study.reap`      mark runs left RUNNING by dead processes as KILLED
+* :mod:`~maglev.study.ui`        the MLflow UI on the store, started lightly
+* :mod:`~maglev.study.cli`       the ``maglev`` command
 
 The run schema (tags, params, metrics, artifact paths) is documented in ``docs/tracking.md``.
-Only ``tracking``, ``job``, ``callback``, ``reap`` and ``schema`` import MLflow or Hydra.
 """

@@ -1,7 +1,7 @@
 """Load a study dataset by its (resolved, plain-dict) config and preprocess it.
 
 No Hydra and no MLflow here: ``load`` takes the ``dataset`` section of the resolved
-config as a plain dict, so ``maglev.reproduce`` and notebooks can call it directly.
+config as a plain dict, so :mod:`maglev.study.reproduce` and notebooks can call it directly.
 Simulated experiments come from :mod:`maglev.labdata`; files from ``data_dir``.
 Preprocessing order: trim → detrend → decimate → split.
 """

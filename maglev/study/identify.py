@@ -3,7 +3,7 @@
 No Hydra and no MLflow here.  :func:`identify` takes the resolved config as a plain
 dict (sections ``dataset``, ``structure``, ``study``, ``data_dir``) and returns the
 model, the scalar metrics, the residual analysis as JSON and the figures; the
-tracking layer logs them and ``maglev.reproduce`` recomputes them.  Everything but
+tracking layer logs them and :mod:`maglev.study.reproduce` recomputes them.  Everything but
 ``fit_seconds`` is a deterministic function of the config.
 """
 
@@ -17,8 +17,8 @@ import numpy as np
 
 from maglev.estimate import estimate
 from maglev.models import PolyModel
+from maglev.structure import ORDER_NAMES
 from maglev.study.datasets import Prepared, load
-from maglev.study.schema import ORDER_KEYS
 from maglev.threads import single_threaded_blas
 from maglev.validate import ResidResult, compare, resid
 
@@ -36,7 +36,7 @@ class RunOutput:
 
 def orders_of(structure: dict) -> list[int]:
     """MATLAB order vector of a structure config section, e.g. ``[na nb nk]`` for ARX."""
-    return [int(structure[k]) for k in ORDER_KEYS[structure["name"]]]
+    return [int(structure[k]) for k in ORDER_NAMES[structure["name"]]]
 
 
 def orders_string(structure: dict) -> str:
@@ -84,7 +84,9 @@ def identify(cfg: dict, figures: bool = True) -> RunOutput:
     out = RunOutput(model=model, metrics={k: float(v) for k, v in metrics.items()},
                     resid=rr.to_dict(), prepared=prep)
     if figures:
-        out.figures = draw(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon)
+        from maglev.study.figures import run_figures
+
+        out.figures = run_figures(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon)
     return out
 
 
@@ -116,39 +118,3 @@ def true_distance(model: PolyModel, true_sys, n: int = 2048) -> dict[str, float]
     dc = model.dcgain()
     return {"g_h2_rel_err": h2_rel, "dcgain_true": dc0, "dcgain_err": dc - dc0,
             "dcgain_rel_err": abs(dc - dc0) / abs(dc0) if dc0 else math.inf}
-
-
-def spectral_estimate(data, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Nonparametric G = Φyu/Φuu by Welch cross-spectra (Hann windows, 50 % overlap); (ω rad/s, G)."""
-    from scipy import signal
-
-    nperseg = nperseg or int(min(512, max(64, data.N // 16)))
-    f, p_uy = signal.csd(data.u, data.y, fs=1.0 / data.Ts, nperseg=nperseg)
-    _, p_uu = signal.welch(data.u, fs=1.0 / data.Ts, nperseg=nperseg)
-    keep = f > 0
-    return 2 * math.pi * f[keep], p_uy[keep] / p_uu[keep]
-
-
-
-
-# ---------------------------------------------------------------------------- figures
-def draw(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon) -> dict:
-    from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid
-
-    label = model.label
-    fig_c = plot_compare(prep.val, [yhat, ysim], [val_fit, val_fit_sim],
-                         labels=[f"{label} {horizon}-step", f"{label} simulation"])
-    fig_c.axes[0].set_title(f"Validation data {prep.val_name}", fontsize="medium")
-    systems = [model] + ([true_sys] if true_sys is not None else [])
-    fig_pz = plot_pzmap(systems)
-    fig_b = plot_bode(model, true_system=true_sys)
-    w, g = spectral_estimate(prep.data)
-    ax_mag, ax_ph = fig_b.axes[0], fig_b.axes[1]
-    nyq = math.pi / prep.data.Ts
-    keep = w <= nyq
-    ax_mag.semilogx(w[keep], 20 * np.log10(np.abs(g[keep])), ".", color="0.5", markersize=3,
-                    label="spectral estimate Φyu/Φuu", zorder=0)
-    ax_ph.semilogx(w[keep], np.degrees(np.unwrap(np.angle(g[keep]))), ".", color="0.5", markersize=3,
-                   zorder=0)
-    ax_mag.legend(loc="best", fontsize="small")
-    return {"compare.png": fig_c, "resid.png": plot_resid(rr), "pzmap.png": fig_pz, "bode.png": fig_b}

@@ -16,54 +16,10 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import tracking
-from maglev.study.schema import typed
+from maglev.study.config import check, config_hash, flatten, plain_config
+from maglev.study.identify import identify, orders_string, run_label
 
 log = logging.getLogger("maglev.study")
-
-
-class StudyConfigError(ValueError):
-    """A config that passed the schema but cannot describe a run (says which key is wrong)."""
-
-
-def plain_config(cfg: DictConfig) -> dict:
-    """The resolved task config as plain Python (enums as strings), with the schema re-applied."""
-    cfg = typed(cfg)
-    return OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
-
-
-def check(cfg: dict) -> None:
-    """Semantic checks the schema cannot express; raise ``StudyConfigError`` naming the key."""
-    from maglev.structure import PolySpec
-    from maglev.study.datasets import data_path
-    from maglev.study.identify import orders_of
-
-    st, ds = cfg["structure"], cfg["dataset"]
-    try:
-        PolySpec.from_orders(st["name"], orders_of(st))
-    except ValueError as exc:
-        raise StudyConfigError(f"structure: {exc}") from None
-    pp = ds["preprocess"]
-    if not 0 < pp["split"] < 1:
-        raise StudyConfigError(f"dataset.preprocess.split must be in (0, 1), got {pp['split']}")
-    if pp["decimate"] < 1 or pp["trim"] < 0:
-        raise StudyConfigError("dataset.preprocess: decimate must be >= 1 and trim >= 0, "
-                               f"got decimate={pp['decimate']}, trim={pp['trim']}")
-    if ds["source"] == "sim":
-        from maglev.labdata import ExperimentSpec
-
-        try:
-            ExperimentSpec(kind=ds["input_class"], low=ds["low"], high=ds["high"],
-                           alpha=ds["alpha"] if ds["input_class"] == "binary" else None,
-                           duration_s=ds["duration_s"], seed=ds["seed"], Ts=ds["Ts"])
-        except ValueError as exc:
-            raise StudyConfigError(f"dataset {ds['name']!r}: {exc}") from None
-    else:
-        try:
-            data_path(ds, cfg["data_dir"])
-        except FileNotFoundError as exc:
-            raise StudyConfigError(str(exc)) from None
-    if cfg["study"]["val_horizon"] < 1:
-        raise StudyConfigError(f"study.val_horizon must be >= 1, got {cfg['study']['val_horizon']}")
 
 
 def hydra_context() -> dict:
@@ -88,19 +44,7 @@ def progress(ctx: dict) -> str:
     return f"[{ctx['job_num'] + 1}/{total}] " if total else f"[{ctx['job_num'] + 1}] "
 
 
-def parent_run_id(ctx: dict) -> str | None:
-    """The sweep's parent run: from the file the sweep callback wrote, else the environment."""
-    if ctx.get("sweep_dir"):
-        f = Path(ctx["sweep_dir"]) / tracking.PARENT_FILE
-        if f.is_file():
-            return f.read_text().strip() or None
-        return os.environ.get(tracking.PARENT_ENV)
-    return None
-
-
 def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
-    from maglev.study.identify import orders_string
-
     ds, st = cfg["dataset"], cfg["structure"]
     tags = {
         "kind": "model", "dataset": ds["name"], "input_class": ds["input_class"],
@@ -118,11 +62,9 @@ def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
 
 def run(cfg: DictConfig) -> float | None:
     """The task of ``study.py``: returns the run's ``val_fit`` (None if it failed)."""
-    from maglev.study.identify import identify, run_label
-
     plain = plain_config(cfg)
     check(plain)
-    chash = tracking.config_hash(plain)
+    chash = config_hash(plain)
     ctx = hydra_context()
     label = progress(ctx) + run_label(plain)
     client, exp_id = tracking.connect(plain["tracking"])
@@ -132,10 +74,10 @@ def run(cfg: DictConfig) -> float | None:
             log.info("skip %s: run %s with config hash %s is FINISHED", label, done, chash[:10])
             return None
     run_info = client.create_run(exp_id, run_name=run_label(plain),
-                                 tags=run_tags(plain, chash, ctx, parent_run_id(ctx))).info
+                                 tags=run_tags(plain, chash, ctx, tracking.sweep_parent(ctx.get("sweep_dir")))).info
     run_id = run_info.run_id
     try:
-        tracking.log_batch(client, run_id, params=tracking.flatten(plain))
+        tracking.log_batch(client, run_id, params=flatten(plain))
         out = identify(plain, figures=plain["tracking"]["log_figures"])
         files = {"config/config.yaml": OmegaConf.to_yaml(OmegaConf.create(plain)),
                  "model/model.json": out.model.to_json(), "model/summary.txt": out.model.summary(),

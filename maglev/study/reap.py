@@ -4,12 +4,11 @@ A run is stale when its ``host`` tag is this machine and its ``pid`` is no longe
 alive, or (any host) when it started more than ``older_than_hours`` ago.  Runs of
 live processes — e.g. another sweep writing to the same store — are left alone.
 
-    python -m maglev.study.reap [--tracking-uri URI] [--experiment NAME] [--older-than-hours H]
+    maglev reap [--tracking-uri URI] [--experiment NAME] [--older-than-hours H]
 """
 
 from __future__ import annotations
 
-import argparse
 import os
 import socket
 import time
@@ -49,28 +48,3 @@ def reap(client, experiment_ids: list[str], older_than_hours: float | None = Non
             client.set_terminated(run.info.run_id, "KILLED")
             killed.append(run.info.run_id)
     return killed
-
-
-def main(argv: list[str] | None = None) -> int:
-    from maglev.study.schema import project_root
-
-    p = argparse.ArgumentParser(prog="python -m maglev.study.reap", description=__doc__.split("\n\n")[0])
-    p.add_argument("--tracking-uri", default=os.environ.get(
-        "MLFLOW_TRACKING_URI", f"sqlite:///{project_root()}/mlruns/mlflow.db"))
-    p.add_argument("--experiment", default="maglev")
-    p.add_argument("--older-than-hours", type=float, default=None)
-    a = p.parse_args(argv)
-    from mlflow import MlflowClient
-
-    client = MlflowClient(tracking_uri=a.tracking_uri)
-    exp = client.get_experiment_by_name(a.experiment)
-    if exp is None:
-        print(f"no experiment {a.experiment!r} in {a.tracking_uri}")
-        return 1
-    killed = reap(client, [exp.experiment_id], a.older_than_hours)
-    print(f"{len(killed)} stale run(s) marked KILLED" + (": " + " ".join(killed) if killed else ""))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -11,37 +11,23 @@ names the key.  Orders live in per-structure schemas: ``structure.na`` exists fo
 defaults to it (``na: ${.order}``), so one sweep axis ``structure.order=2,3`` works
 for all structures, while ``structure.na=3`` still overrides a single order.
 
-The resolver ``${maglev.root:}`` gives the project root (``$MAGLEV_ROOT``, else the
-directory holding ``study.py`` and ``conf/``, else the current directory).
+The resolver ``${maglev.root:}`` gives the project root (:func:`maglev.paths.project_root`).
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from enum import Enum
-from pathlib import Path
 from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
-from maglev.structure import ORDER_NAMES
-
-
-def project_root() -> str:
-    """``$MAGLEV_ROOT``, else the checkout holding ``study.py`` and ``conf/``, else the cwd."""
-    env = os.environ.get("MAGLEV_ROOT")
-    if env:
-        return str(Path(env).resolve())
-    here = Path(__file__).resolve().parents[2]
-    if (here / "study.py").is_file() and (here / "conf").is_dir():
-        return str(here)
-    return str(Path.cwd().resolve())
+from maglev.paths import project_root
 
 
 if not OmegaConf.has_resolver("maglev.root"):
-    OmegaConf.register_new_resolver("maglev.root", project_root)
+    OmegaConf.register_new_resolver("maglev.root", lambda: str(project_root()))
 
 
 class InputClass(Enum):
@@ -140,9 +126,6 @@ class BjCfg:
     nk: int = 1
     initial_condition: InitialCondition = InitialCondition.auto
     max_iterations: int = 200
-
-
-ORDER_KEYS = {name: ORDER_NAMES[name] for name in ("arx", "armax", "oe", "bj")}  # MATLAB order vectors
 
 
 @dataclass

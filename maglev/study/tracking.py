@@ -1,6 +1,6 @@
-"""Everything MLflow: the store, the experiment, config hashing, logging a run, queries.
+"""Everything MLflow on the writing side: the store, the experiment, logging a run, queries.
 
-Written against MLflow 3.x (see /work/shared/notes/hydra-mlflow.md): the local store is
+Written against MLflow 3.x (see ../shared/notes/hydra-mlflow.md): the local store is
 SQLite with an absolute URI, created once under a file lock (two processes migrating a
 fresh database at once crash); runs are created with ``MlflowClient`` rather than the
 fluent API, so no "active run" leaks between jobs of a reused worker process; params,
@@ -11,7 +11,6 @@ and uploaded in one ``log_artifacts``.  The run schema is documented in docs/tra
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import math
 import os
@@ -29,10 +28,8 @@ import mlflow  # noqa: E402
 from mlflow import MlflowClient  # noqa: E402
 from mlflow.entities import Metric, Param, RunTag  # noqa: E402
 
-from maglev.study.schema import ORDER_KEYS, project_root  # noqa: E402
+from maglev.paths import project_root  # noqa: E402
 
-# study keys that change a run's result (the rest — name, skipping, failing — do not)
-HASHED_STUDY_KEYS = ("val_horizon", "resid_lags", "true_plant")
 PARENT_FILE = "parent_run_id"
 PARENT_ENV = "MAGLEV_PARENT_RUN_ID"
 SIZE_ENV = "MAGLEV_SWEEP_SIZE"  # number of jobs in the running sweep, for progress
@@ -91,36 +88,7 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
     return client, exp_id
 
 
-# ---------------------------------------------------------------------------- config → params, hash
-def flatten(d: dict, prefix: str = "") -> dict[str, str]:
-    """``{"a": {"b": 1}}`` → ``{"a.b": "1"}`` (lists as JSON, values cut to MLflow's 6000 chars)."""
-    out: dict[str, str] = {}
-    for key, value in d.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, dict):
-            out.update(flatten(value, name + "."))
-        else:
-            text = json.dumps(value) if isinstance(value, (list, tuple)) else str(value)
-            out[name] = text[:6000]
-    return out
-
-
-def hashed_part(cfg: dict) -> dict:
-    """What determines a run's result: data, preprocessing, structure and orders, validation."""
-    ds = dict(cfg["dataset"])
-    st = cfg["structure"]
-    structure = {k: v for k, v in st.items() if k != "order"}  # `order` is only a shorthand
-    structure = {**structure, "orders": [st[k] for k in ORDER_KEYS[st["name"]]]}
-    return {"dataset": ds, "structure": structure,
-            "study": {k: cfg["study"][k] for k in HASHED_STUDY_KEYS}}
-
-
-def config_hash(cfg: dict) -> str:
-    """sha1 of the result-determining part of the resolved config (not tracking, paths or names)."""
-    text = json.dumps(hashed_part(cfg), sort_keys=True, default=str)
-    return hashlib.sha1(text.encode()).hexdigest()
-
-
+# ---------------------------------------------------------------------------- provenance
 @lru_cache(maxsize=1)
 def git_info() -> dict[str, str]:
     """Commit of the project checkout and whether tracked files are modified."""
@@ -150,6 +118,16 @@ def finished_run(client: MlflowClient, exp_id: str, chash: str) -> str | None:
         max_results=1,
     )
     return runs[0].info.run_id if runs else None
+
+
+def sweep_parent(sweep_dir: str | None) -> str | None:
+    """The running sweep's parent run: from ``<sweep dir>/parent_run_id`` (written by the sweep
+    callback, readable on a cluster), else ``$MAGLEV_PARENT_RUN_ID``; None outside a sweep."""
+    if not sweep_dir:
+        return None
+    f = Path(sweep_dir) / PARENT_FILE
+    text = f.read_text().strip() if f.is_file() else ""
+    return text or os.environ.get(PARENT_ENV) or None
 
 
 def children(client: MlflowClient, exp_id: str, parent_id: str) -> list:

@@ -1,7 +1,7 @@
 """The sections of the lab report (EL2820 Lab 3 §5), each as HTML stating its numbers next to its figures.
 
 Every function takes what the sweep logged (the ranking, the parent run's lab steps, the
-datasets rebuilt from the runs' configs) and returns an HTML fragment; :mod:`maglev.report`
+datasets rebuilt from the runs' configs) and returns an HTML fragment; :mod:`maglev.study.report`
 assembles them into one page.  Figures arrive as PNG bytes and are embedded as base64.
 """
 
@@ -14,7 +14,9 @@ from collections.abc import Iterable
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
+
+from maglev.study.figures import orders_figure, png
+from maglev.study.ranking import validation_note
 
 CANCEL_TOL = 0.05  # |pole - zero| below this (in the z-plane) flags a near pole-zero cancellation
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
@@ -67,12 +69,6 @@ def para(text: str) -> str:
 
 def bullets(items: Iterable[str]) -> str:
     return "<ul>" + "".join(f"<li>{i}</li>" for i in items) + "</ul>"
-
-
-def png(fig: Figure) -> bytes:
-    from maglev.rank_figures import png as render
-
-    return render(fig)
 
 
 # ---------------------------------------------------------------------------- analysis helpers
@@ -187,25 +183,6 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict) -> str:
                    "<details><summary>Per model</summary>" + table(per_model) + "</details>")
 
 
-def orders_figure(runs: pd.DataFrame) -> Figure:
-    """Loss, AIC and validation FIT against the number of parameters, one row per structure."""
-    structures = list(dict.fromkeys(runs["structure"]))
-    fig = Figure(figsize=(12, 2.8 * len(structures)), layout="constrained")
-    axes = fig.subplots(len(structures), 3, squeeze=False)
-    for i, st in enumerate(structures):
-        part = runs[runs["structure"] == st]
-        for ds, g in part.groupby("dataset"):
-            g = g.sort_values("n_params")
-            for j, (col, log) in enumerate((("loss", True), ("aic", False), ("val_fit", False))):
-                axes[i, j].plot(g["n_params"], g[col], "o-", label=str(ds))
-                axes[i, j].set_yscale("log" if log else "linear")
-        for j, label in enumerate(("loss (estimation MSE)", "AIC", "val FIT %")):
-            axes[i, j].set_title(f"{st}: {label}", fontsize="medium")
-            axes[i, j].set_xlabel("free parameters")
-        axes[i, 0].legend(fontsize="x-small")
-    return fig
-
-
 def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> str:
     """``models``: run id -> PolyModel for every ranked run."""
     parts = []
@@ -245,8 +222,6 @@ def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> s
 
 
 def top_four(ranking) -> str:
-    from maglev.rank import validation_note
-
     cols = ["rank", "name", "structure", "orders", "dataset", "val_fit", "n_params", "val_dataset"]
     note = validation_note(ranking.top)
     text = para(f"{len(ranking.table)} FINISHED models ranked by one-step-ahead FIT on validation data "
@@ -262,8 +237,6 @@ def top_four(ranking) -> str:
 
 
 def binary_vs_uniform(ranking) -> str:
-    from maglev.rank import validation_note
-
     if ranking.comparison is None:
         return section("binary-vs-uniform", "6. Binary vs uniform input", para(esc("; ".join(ranking.notes))))
     comp, st = ranking.comparison, ranking.structure

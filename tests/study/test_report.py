@@ -1,21 +1,22 @@
 """End to end: a small lab sweep with the ranking callback into a tmp store, then the report.
 
-The sweep runs as a subprocess like tests/test_study.py (absolute tracking.uri in
-tmp_path); the callback is added on the command line, so the test does not depend on
-conf/config.yaml wiring it.  Expected numbers are read from the store, not copied from output.
+The sweep runs in-process (tests/study/harness.py) with conf/config.yaml's ranking
+callback writing the report under the store.  Expected numbers are read from the
+store, not copied from output.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import re
 import shutil
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from tests.test_study import REPO, TINY, all_runs, run_study
+from .harness import TINY, all_runs, launch
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
 SECTION_IDS = ("working-region", "inputs", "data", "structures", "top4", "binary-vs-uniform", "best-vs-worst")
@@ -23,16 +24,12 @@ SECTION_IDS = ("working-region", "inputs", "data", "structures", "top4", "binary
 
 @pytest.fixture(scope="module")
 def lab_sweep(tmp_path_factory):
-    """The lab experiment reduced to ARX and OE (12 runs), ranked and reported by the callback.
-
-    ``++`` adds the callback, or overrides it once conf/config.yaml wires it as ``maglev_rank``.
-    """
+    """The lab sweep reduced to ARX and OE (12 runs), ranked and reported by the callback; its stdout."""
     store = tmp_path_factory.mktemp("report")
-    reports = store / "reports"
-    proc = run_study(store, "-m", "+experiment=lab", "structure=arx,oe", *TINY,
-                     "++hydra.callbacks.maglev_rank._target_=maglev.rank.RankingCallback",
-                     f"++hydra.callbacks.maglev_rank.report_dir={reports}")
-    return store, reports, proc
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        launch(store, "+sweep=lab", "structure=arx,oe", *TINY, rank=True)
+    return store, store / "reports", out.getvalue()
 
 
 def ranked(runs) -> list:
@@ -42,8 +39,7 @@ def ranked(runs) -> list:
 
 
 def test_sweep_ends_with_ranking_run_and_prints_where_things_are(lab_sweep):
-    store, reports, proc = lab_sweep
-    out = proc.stdout
+    store, reports, out = lab_sweep
     assert "ranking run:" in out and f"report:      {reports / 'lab.html'}" in out
     assert f"mlflow ui --backend-store-uri sqlite:///{store}/mlflow.db" in out
     client, _, runs = all_runs(store)
@@ -102,12 +98,13 @@ def test_report_is_self_contained(lab_sweep):
     assert "<link" not in page and "<script" not in page and "(figure" not in page  # no missing figures
 
 
-def test_report_cli_reuses_the_ranking_run_of_the_same_runs(lab_sweep, tmp_path):
+def test_report_cli_reuses_the_ranking_run_of_the_same_runs(lab_sweep, tmp_path, capsys):
+    from maglev.study.cli import main
+
     store, _, _ = lab_sweep
     out = tmp_path / "r.html"
-    proc = subprocess.run([sys.executable, "-m", "maglev.report", "--tracking-uri", f"sqlite:///{store}/mlflow.db",
-                           "--out", str(out)], capture_output=True, text=True, timeout=300, cwd=REPO)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert main(["report", "--tracking-uri", f"sqlite:///{store}/mlflow.db", "--out", str(out)]) == 0
+    assert f"report:      {out}" in capsys.readouterr().out
     assert out.is_file() and "<section id='best-vs-worst'>" in out.read_text()
     _, _, runs = all_runs(store)
     assert len([r for r in runs if r.data.tags.get("kind") == "ranking"]) == 1
@@ -136,7 +133,7 @@ def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tm
 
 def test_near_pole_zero_cancellations_are_flagged():
     from maglev.models import PolyModel
-    from maglev.report_sections import cancellations
+    from maglev.study.report.sections import cancellations
 
     # G = (q^-2 - 0.5 q^-3) / (1 - 0.52 q^-1)(1 - 0.9 q^-1): zero 0.5 vs pole 0.52 cancel, 0.9 does not
     F = np.convolve([1, -0.52], [1, -0.9])

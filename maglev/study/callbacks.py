@@ -1,6 +1,6 @@
-"""Hydra callback owning a sweep's parent MLflow run.
+"""The sweep's Hydra callbacks: the parent MLflow run (:class:`SweepCallback`) and the ranking (:class:`RankingCallback`).
 
-``on_multirun_start`` runs once in the launching process before any job:
+``SweepCallback.on_multirun_start`` runs once in the launching process before any job:
 it creates the store and experiment (so parallel workers never race to create the
 SQLite database), reaps runs left RUNNING by dead processes, finds or creates the
 parent run (``kind=sweep``; a relaunch of the same sweep reuses its parent), writes
@@ -8,7 +8,8 @@ its id to ``<sweep dir>/parent_run_id`` (read by every job, also on a cluster) a
 ``$MAGLEV_PARENT_RUN_ID``, and logs the lab-level steps once per sweep.
 ``on_multirun_end`` finishes the parent with a summary.  If the sweep dies (a job
 config error, Ctrl-C) an ``atexit`` hook marks the parent KILLED, or deletes it when
-no job ever started a run.
+no job ever started a run.  ``RankingCallback.on_multirun_end`` then ranks the sweep
+and writes its report (:func:`maglev.study.report.rank_and_report`).
 """
 
 from __future__ import annotations
@@ -26,16 +27,9 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import tracking
+from maglev.study.config import task_config
 
 log = logging.getLogger("maglev.study")
-
-
-def task_config(config: DictConfig) -> dict:
-    """The resolved task part of a full Hydra config (everything but ``hydra``)."""
-    from maglev.study.job import plain_config
-
-    task = OmegaConf.masked_copy(config, [k for k in config if k != "hydra"])
-    return plain_config(task)
 
 
 def sweep_id(config: DictConfig, task: dict) -> str:
@@ -161,3 +155,33 @@ class SweepCallback(Callback):
                 self.client.set_terminated(self.parent, "KILLED")
         except Exception:  # noqa: BLE001 — best effort at interpreter exit
             pass
+
+
+class RankingCallback(Callback):
+    """At the end of a multirun: rank the sweep, log the ranking run and write the report.
+
+    Order-independent with :class:`SweepCallback` (it reads the parent id from the sweep
+    dir); errors are logged, never raised, so a sweep's exit status is its jobs'.
+    """
+
+    def __init__(self, structure: str | None = None, report_dir: str | None = None) -> None:
+        self.structure = structure
+        self.report_dir = report_dir
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        from maglev.study.report import rank_and_report
+        from maglev.study.store import SweepError
+
+        HydraConfig.instance().set_config(config)
+        task = task_config(config)
+        parent = tracking.sweep_parent(str(config.hydra.sweep.dir))
+        if parent is None:
+            log.warning("ranking skipped: no parent run id in %s", config.hydra.sweep.dir)
+            return
+        try:
+            rank_and_report(task["tracking"]["uri"], task["tracking"]["experiment"], parent,
+                            self.structure, self.report_dir)
+        except SweepError as exc:
+            log.warning("ranking/report not made: %s", exc)
+        except Exception as exc:  # noqa: BLE001 — a report bug must not fail a finished sweep
+            log.exception("ranking/report failed: %s: %s", type(exc).__name__, exc)

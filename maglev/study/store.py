@@ -1,4 +1,4 @@
-"""Read one sweep back from the MLflow store: its parent run, its FINISHED model runs, their artifacts.
+"""Read a sweep back from the MLflow store: its parent run, its FINISHED model runs, their artifacts.
 
 The ranking and the report only read what the study logged (schema in docs/tracking.md),
 so they work on any store — the local SQLite file or a tracking server — long after the
@@ -10,7 +10,6 @@ exit non-zero instead of showing a traceback.
 from __future__ import annotations
 
 import json
-import os
 import tempfile
 import warnings
 from dataclasses import dataclass
@@ -25,13 +24,6 @@ TAG_COLUMNS = ("dataset", "input_class", "data_source", "structure", "orders", "
 
 class SweepError(RuntimeError):
     """A user-facing problem with the store or the sweep (printed without a traceback)."""
-
-
-def default_uri() -> str:
-    """``$MLFLOW_TRACKING_URI``, else the project's local store ``sqlite:///<repo>/mlruns/mlflow.db``."""
-    from maglev.study.schema import project_root
-
-    return os.environ.get("MLFLOW_TRACKING_URI", f"sqlite:///{project_root()}/mlruns/mlflow.db")
 
 
 @dataclass(frozen=True)
@@ -61,7 +53,7 @@ def open_store(uri: str, experiment: str):
 
     db = sqlite_path(uri)
     if db is not None and not db.is_file():
-        raise SweepError(f"no MLflow store at {db}; run a sweep first (python study.py -m +experiment=lab) "
+        raise SweepError(f"no MLflow store at {db}; run a sweep first (python study.py -m +sweep=lab) "
                          "or pass --tracking-uri")
     from mlflow import MlflowClient
     from mlflow.exceptions import MlflowException
@@ -92,7 +84,7 @@ def find_parent(client, experiment_id: str, parent_id: str | None = None):
     runs = client.search_runs([experiment_id], filter_string="tags.kind = 'sweep'",
                               order_by=["attributes.start_time DESC"], max_results=1)
     if not runs:
-        raise SweepError("the experiment has no sweep yet; run one with python study.py -m +experiment=lab")
+        raise SweepError("the experiment has no sweep yet; run one with python study.py -m +sweep=lab")
     return runs[0]
 
 
@@ -153,7 +145,7 @@ def run_config(client, run_id: str) -> dict:
     """The resolved config a run logged (``config/config.yaml``), with the study's schema re-applied."""
     from omegaconf import OmegaConf
 
-    from maglev.study.job import plain_config
+    from maglev.study.config import plain_config
 
     raw = artifact_bytes(client, run_id, "config/config.yaml")
     if raw is None:

@@ -2,25 +2,20 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
 from hydra import compose, initialize_config_dir
 from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError, ValidationError
 
+from maglev.structure import ORDER_NAMES
 from maglev.study import schema  # noqa: F401  (registers schemas and ${maglev.root:})
-from maglev.study.job import StudyConfigError, check, plain_config
-from maglev.study.tracking import config_hash
+from maglev.study.config import StudyConfigError, check, config_hash, plain_config
 
-REPO = Path(__file__).resolve().parents[1]
-CONF = REPO / "conf"
+from .harness import CONF, REPO, all_runs, launch
+
 SIM = sorted(p.stem for p in (CONF / "dataset").glob("*.yaml") if not p.stem.startswith("real_"))
-REAL = sorted(p.stem for p in (CONF / "dataset").glob("real_*.yaml"))
+REAL = sorted(p.stem for p in (CONF / "dataset").glob("real_*.yaml") if p.stem != "real_record")
 STRUCTURES = ["arx", "armax", "oe", "bj"]
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
@@ -86,7 +81,7 @@ def test_data_dir_defaults_beside_the_repo_and_follows_the_environment(monkeypat
 @pytest.mark.parametrize("name", STRUCTURES)
 def test_structures_and_order_overrides(name):
     c = task(cfg_for([f"structure={name}", "structure.order=3", "structure.nk=1"]))["structure"]
-    keys = schema.ORDER_KEYS[name]
+    keys = ORDER_NAMES[name]
     assert [c[k] for k in keys] == [3] * (len(keys) - 1) + [1]
     one = keys[0]
     c = task(cfg_for([f"structure={name}", f"structure.{one}=4"]))["structure"]
@@ -137,14 +132,14 @@ def test_config_hash_ignores_shorthand_tracking_and_names():
 
 
 @pytest.mark.parametrize("name, n_datasets", [("lab", 3), ("lab_real", 3)])
-def test_experiments_declare_the_sweep(name, n_datasets):
-    cfg = cfg_for([f"+experiment={name}"], hydra=True)
+def test_sweep_configs_declare_the_sweep(name, n_datasets):
+    cfg = cfg_for([f"+sweep={name}"], hydra=True)
     params = cfg.hydra.sweeper.params
     datasets = params["dataset"].split(",")
     assert len(datasets) == n_datasets and len(params["structure"].split(",")) >= 3
     assert len(params["structure.order"].split(",")) >= 2
     assert str(cfg.hydra.mode) == "RunMode.MULTIRUN" and cfg.study.name == name
-    classes = {task(cfg_for([f"+experiment={name}", f"dataset={d}"]))["dataset"]["input_class"] for d in datasets}
+    classes = {task(cfg_for([f"+sweep={name}", f"dataset={d}"]))["dataset"]["input_class"] for d in datasets}
     assert classes == {"uniform", "binary"}
     if name == "lab":
         inputs = [task(cfg_for([f"dataset={d}"]))["dataset"]["input_class"] for d in datasets]
@@ -158,19 +153,19 @@ def test_launcher_configs_exist():
     assert (CONF / "hydra" / "launcher" / "slurm.yaml").is_file()
 
 
-def test_command_line_typo_creates_no_run(tmp_path):
-    db = tmp_path / "mlflow.db"
-    for args in (["structure.na=abc"], ["-m", "structure=arx,oe", "structure.na=abc"], ["dataset=nope"]):
-        proc = subprocess.run(
-            [sys.executable, str(REPO / "study.py"), *args, f"tracking.uri=sqlite:///{db}",
-             f"hydra.run.dir={tmp_path}/out", f"hydra.sweep.dir={tmp_path}/multi"],
-            capture_output=True, text=True, cwd=tmp_path, timeout=300,
-            env={**os.environ, "MLFLOW_TRACKING_URI": ""},
-        )
-        assert proc.returncode != 0
-        assert "structure.na" in proc.stderr or "dataset/nope" in proc.stderr, proc.stderr[-2000:]
-    if db.exists():
-        from mlflow import MlflowClient
+def test_real_record_base_is_not_a_dataset_on_its_own():
+    with pytest.raises(Exception, match="dataset.name|Missing mandatory value"):
+        task(cfg_for(["dataset=real_record"]))
 
-        client = MlflowClient(f"sqlite:///{db}")
-        assert client.search_runs([e.experiment_id for e in client.search_experiments()]) == []
+
+@pytest.mark.parametrize("overrides, needle", [
+    (["structure.na=abc"], "structure.na"),
+    (["structure=arx,oe", "structure.na=abc"], "structure.na"),
+    (["dataset=nope"], "dataset/nope"),
+])
+def test_a_mistake_in_a_launch_creates_no_run(tmp_path, overrides, needle):
+    with pytest.raises(Exception) as err:
+        launch(tmp_path, *overrides)
+    assert needle in str(err.value) + str(err.value.__cause__)
+    db = tmp_path / "mlflow.db"
+    assert not db.exists() or all_runs(tmp_path)[2] == []

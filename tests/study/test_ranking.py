@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +17,6 @@ import pytest
 from maglev.models import PolyModel
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
-REPO = Path(__file__).resolve().parents[1]
 
 # name: (structure, orders, dataset, input_class, val_fit, n_params)
 RUNS = {
@@ -85,7 +82,7 @@ def store(tmp_path_factory):
 
 
 def test_rank_table_orders_by_fit_then_fewer_parameters():
-    from maglev.rank import rank_table
+    from maglev.study.ranking import rank_table
 
     runs = pd.DataFrame([{"run_id": n, "name": n, "structure": s, "orders": o, "dataset": d, "input_class": c,
                           "val_dataset": f"{d}[val]", "val_fit": f, "n_params": k}
@@ -96,8 +93,8 @@ def test_rank_table_orders_by_fit_then_fewer_parameters():
 
 
 def test_choose_structure_prefers_best_structure_with_both_input_classes():
-    from maglev.rank import choose_structure, rank_table
-    from maglev.sweep_runs import SweepError
+    from maglev.study.ranking import choose_structure, rank_table
+    from maglev.study.store import SweepError
 
     runs = pd.DataFrame([{"run_id": n, "name": n, "structure": s, "orders": o, "dataset": d, "input_class": c,
                           "val_dataset": f"{d}[val]", "val_fit": f, "n_params": k}
@@ -113,10 +110,10 @@ def test_choose_structure_prefers_best_structure_with_both_input_classes():
 def test_rank_cli_logs_the_ranking_run(store, capsys):
     from mlflow import MlflowClient
 
-    from maglev.rank import main
+    from maglev.study.cli import main
 
     uri, ids = store
-    assert main(["--tracking-uri", uri]) == 0
+    assert main(["rank", "--tracking-uri", uri]) == 0
     out = capsys.readouterr().out
     lines = [ln for ln in out.splitlines() if ln.strip()[:2] in ("1.", "2.", "3.", "4.")]
     assert [next(n for n in RUNS if n in ln) for ln in lines] == EXPECTED[:4]
@@ -146,58 +143,60 @@ def test_rank_cli_logs_the_ranking_run(store, capsys):
 
 
 def test_structure_option_and_its_errors(store, capsys):
-    from maglev.rank import main
+    from maglev.study.cli import main
 
     uri, _ = store
-    assert main(["--tracking-uri", uri, "--structure", "arx"]) == 0
-    assert main(["--tracking-uri", uri, "--structure", "oe"]) == 2
+    assert main(["rank", "--tracking-uri", uri, "--structure", "arx"]) == 0
+    assert main(["rank", "--tracking-uri", uri, "--structure", "oe"]) == 2
     assert "needs both binary- and uniform-input runs" in capsys.readouterr().err
 
 
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
-    return subprocess.run([sys.executable, "-m", "maglev.rank", *args], capture_output=True, text=True,
-                          timeout=120, cwd=REPO, env=env)
-
-
-def test_missing_store_unknown_and_empty_experiment_are_clear_errors(tmp_path):
+def test_missing_store_unknown_and_empty_experiment_are_clear_errors(tmp_path, capsys):
     from maglev.study import tracking
+    from maglev.study.cli import main
+
+    def rank(*args: str) -> tuple[int, str]:
+        code = main(["rank", *args])
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1, err  # one line, no traceback
+        return code, err
 
     missing = tmp_path / "none" / "mlflow.db"
-    proc = run_cli("--tracking-uri", f"sqlite:///{missing}")
-    assert proc.returncode == 2 and "no MLflow store" in proc.stderr and "Traceback" not in proc.stderr
+    code, err = rank("--tracking-uri", f"sqlite:///{missing}")
+    assert code == 2 and "no MLflow store" in err
     assert not missing.exists()  # looking must not create a store
 
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     client, exp = tracking.connect({"uri": uri, "experiment": "maglev", "artifact_location": str(tmp_path / "a")})
-    proc = run_cli("--tracking-uri", uri, "--experiment", "nope")
-    assert proc.returncode == 2 and "no experiment 'nope'" in proc.stderr and "Traceback" not in proc.stderr
-    proc = run_cli("--tracking-uri", uri)
-    assert proc.returncode == 2 and "no sweep yet" in proc.stderr and "Traceback" not in proc.stderr
+    capsys.readouterr()  # MLflow's own messages while creating the store
+    code, err = rank("--tracking-uri", uri, "--experiment", "nope")
+    assert code == 2 and "no experiment 'nope'" in err
+    code, err = rank("--tracking-uri", uri)
+    assert code == 2 and "no sweep yet" in err
 
     parent = client.create_run(exp, run_name="empty", tags={"kind": "sweep", "sweep": "empty"}).info.run_id
     failed = client.create_run(exp, tags={"kind": "model", "mlflow.parentRunId": parent}).info.run_id
     client.set_terminated(failed, "FAILED")
-    proc = run_cli("--tracking-uri", uri, "--parent", parent)
-    assert proc.returncode == 2 and "no FINISHED model runs (1 FAILED)" in proc.stderr
-    proc = run_cli("--tracking-uri", uri, "--parent", failed)
-    assert proc.returncode == 2 and "not a sweep parent run" in proc.stderr and "Traceback" not in proc.stderr
+    code, err = rank("--tracking-uri", uri, "--parent", parent)
+    assert code == 2 and "no FINISHED model runs (1 FAILED)" in err
+    code, err = rank("--tracking-uri", uri, "--parent", failed)
+    assert code == 2 and "not a sweep parent run" in err
 
 
 def test_parent_id_comes_from_the_sweep_dir_else_the_environment(tmp_path, monkeypatch):
-    from maglev.rank import parent_of_sweep
-    from maglev.study.tracking import PARENT_ENV, PARENT_FILE
+    from maglev.study.tracking import PARENT_ENV, PARENT_FILE, sweep_parent
 
     monkeypatch.delenv(PARENT_ENV, raising=False)
-    assert parent_of_sweep(str(tmp_path)) is None
+    assert sweep_parent(str(tmp_path)) is None
     monkeypatch.setenv(PARENT_ENV, "from-env")
-    assert parent_of_sweep(str(tmp_path)) == "from-env"
+    assert sweep_parent(str(tmp_path)) == "from-env"
+    assert sweep_parent(None) is None  # not a sweep: no parent, whatever the environment says
     (tmp_path / PARENT_FILE).write_text("from-file\n")
-    assert parent_of_sweep(str(tmp_path)) == "from-file"
+    assert sweep_parent(str(tmp_path)) == "from-file"
 
 
 def test_markdown_table_escapes_and_formats():
-    from maglev.rank import markdown
+    from maglev.study.ranking import markdown
 
     text = markdown(pd.DataFrame({"a": ["x|y"], "b": [1.23456], "c": [np.nan]}))
     assert text.splitlines() == ["| a | b | c |", "|---|---|---|", "| x\\|y | 1.23 |  |"]

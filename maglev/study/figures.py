@@ -1,4 +1,4 @@
-"""Figures of the ranking: best vs worst (Bode, pole-zero maps, residual correlations) and binary vs uniform.
+"""The study's figures: each model run's four, the ranking's (best vs worst, binary vs uniform), orders.
 
 Drawn on ``Figure`` objects made without pyplot (safe headless), with the library's
 plot helpers (:mod:`maglev.plots`), and rendered to PNG bytes so the ranking run logs
@@ -8,12 +8,13 @@ exactly the images the HTML report embeds.
 from __future__ import annotations
 
 import io
+import math
 
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from maglev.plots import plot_bode, plot_pzmap, plot_resid
+from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid
 
 DPI = 90
 
@@ -70,4 +71,56 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
         ax2.set_yticks(range(values.shape[0]), list(common.index), fontsize="small")
         ax2.set_title("FIT % of each model on each validation set", fontsize="medium")
         fig.colorbar(image, ax=ax2, label="FIT %")
+    return fig
+
+
+def run_figures(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon) -> dict:
+    """The four figures of one model run: compare (one-step and simulation), resid, pzmap, Bode with the
+    spectral estimate of the whole record (and the true system where known)."""
+    label = model.label
+    fig_c = plot_compare(prep.val, [yhat, ysim], [val_fit, val_fit_sim],
+                         labels=[f"{label} {horizon}-step", f"{label} simulation"])
+    fig_c.axes[0].set_title(f"Validation data {prep.val_name}", fontsize="medium")
+    systems = [model] + ([true_sys] if true_sys is not None else [])
+    fig_pz = plot_pzmap(systems)
+    fig_b = plot_bode(model, true_system=true_sys)
+    w, g = _spectral_estimate(prep.data)
+    ax_mag, ax_ph = fig_b.axes[0], fig_b.axes[1]
+    nyq = math.pi / prep.data.Ts
+    keep = w <= nyq
+    ax_mag.semilogx(w[keep], 20 * np.log10(np.abs(g[keep])), ".", color="0.5", markersize=3,
+                    label="spectral estimate Φyu/Φuu", zorder=0)
+    ax_ph.semilogx(w[keep], np.degrees(np.unwrap(np.angle(g[keep]))), ".", color="0.5", markersize=3,
+                   zorder=0)
+    ax_mag.legend(loc="best", fontsize="small")
+    return {"compare.png": fig_c, "resid.png": plot_resid(rr), "pzmap.png": fig_pz, "bode.png": fig_b}
+
+
+def _spectral_estimate(data, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Nonparametric G = Φyu/Φuu by Welch cross-spectra (Hann windows, 50 % overlap); (ω rad/s, G)."""
+    from scipy import signal
+
+    nperseg = nperseg or int(min(512, max(64, data.N // 16)))
+    f, p_uy = signal.csd(data.u, data.y, fs=1.0 / data.Ts, nperseg=nperseg)
+    _, p_uu = signal.welch(data.u, fs=1.0 / data.Ts, nperseg=nperseg)
+    keep = f > 0
+    return 2 * math.pi * f[keep], p_uy[keep] / p_uu[keep]
+
+
+def orders_figure(runs: pd.DataFrame) -> Figure:
+    """Loss, AIC and validation FIT against the number of parameters, one row per structure."""
+    structures = list(dict.fromkeys(runs["structure"]))
+    fig = Figure(figsize=(12, 2.8 * len(structures)), layout="constrained")
+    axes = fig.subplots(len(structures), 3, squeeze=False)
+    for i, st in enumerate(structures):
+        part = runs[runs["structure"] == st]
+        for ds, g in part.groupby("dataset"):
+            g = g.sort_values("n_params")
+            for j, (col, log) in enumerate((("loss", True), ("aic", False), ("val_fit", False))):
+                axes[i, j].plot(g["n_params"], g[col], "o-", label=str(ds))
+                axes[i, j].set_yscale("log" if log else "linear")
+        for j, label in enumerate(("loss (estimation MSE)", "AIC", "val FIT %")):
+            axes[i, j].set_title(f"{st}: {label}", fontsize="medium")
+            axes[i, j].set_xlabel("free parameters")
+        axes[i, 0].legend(fontsize="x-small")
     return fig

@@ -1,33 +1,26 @@
 """The lab report of a sweep as one self-contained HTML page (figures embedded as base64 PNG).
 
-    python -m maglev.report [--experiment NAME] [--parent RUN_ID] [--structure S] [--tracking-uri URI] [--out FILE]
-
-Holds what EL2820 Lab 3 §5 asks for, each section with its numbers: the working region
-and its motivation, the three input signals and why (ranges vs the working region, α*
-from the spectra), the data used for estimation and validation, the structures and the
-motivation of their orders (loss/FPE/AIC vs order, near pole-zero cancellations), the
-top-four ranking, binary vs uniform input for one structure, and best vs worst.
-Written to ``reports/<sweep>.html`` (default) and logged as ``report/<sweep>.html`` to
-the sweep's ranking run — the latest one that ranked the same runs, else a new one.
+Holds what EL2820 Lab 3 §5 asks for, each section with its numbers (:mod:`.sections`):
+the working region and its motivation, the three input signals and why (ranges vs the
+working region, α* from the spectra), the data used for estimation and validation, the
+structures and the motivation of their orders (loss/FPE/AIC vs order, near pole-zero
+cancellations), the top-four ranking, binary vs uniform input for one structure, and
+best vs worst.  Written to ``reports/<sweep>.html`` (default) and logged as
+``report/<sweep>.html`` to the sweep's ranking run — the latest one that ranked the
+same runs, else a new one.  ``maglev report`` and the end-of-sweep callback call it.
 """
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
 import html
-import sys
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-
-from maglev import report_sections as sec  # noqa: E402
-from maglev.rank import Ranking, add_store_args, compute, log_ranking, ui_hint  # noqa: E402
-from maglev.study.tracking import log_files  # noqa: E402
-from maglev.sweep_runs import (  # noqa: E402
-    SweepError, artifact_bytes, artifact_json, default_uri, load_model, load_sweep)
+from maglev.paths import reports_dir
+from maglev.study.ranking import Ranking, compute, log_ranking, top_text, ui_hint
+from maglev.study.report import sections as sec
+from maglev.study.store import SweepError, artifact_bytes, artifact_json, load_model, load_sweep
+from maglev.study.tracking import log_files
 
 LAB_FIGURES = ("working_region.png", "rise_time.png", "output_spectrum.png", "alpha.png")
 CSS = """
@@ -86,16 +79,10 @@ def build(ranking: Ranking, ranking_run: str) -> str:
             "</body></html>\n")
 
 
-def default_dir() -> Path:
-    from maglev.study.schema import project_root
-
-    return Path(project_root()) / "reports"
-
-
 def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = None) -> Path:
     """Write the page (``out``: a file, a directory, or None for ``reports/``) and log it to the ranking run."""
     name = f"{ranking.sweep.name}.html"
-    path = Path(out) if out else default_dir()
+    path = Path(out) if out else reports_dir()
     if path.suffix.lower() != ".html":
         path = path / name
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -115,22 +102,15 @@ def ranking_run_for(ranking: Ranking) -> str:
     return found[0].info.run_id if found else log_ranking(ranking)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m maglev.report", description=__doc__.split("\n\n")[0])
-    add_store_args(p)
-    p.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>.html)")
-    a = p.parse_args(argv)
-    try:
-        sweep = load_sweep(a.tracking_uri or default_uri(), a.experiment, a.parent)
-        ranking = compute(sweep, a.structure)
-        run_id = ranking_run_for(ranking)
-        path = write_report(ranking, run_id, a.out)
-    except SweepError as exc:
-        print(f"maglev.report: {exc}", file=sys.stderr)
-        return 2
-    print(f"report: {path}\nlogged to ranking run {run_id}\n  {ui_hint(sweep, run_id)}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+def rank_and_report(uri: str, experiment: str, parent: str | None, structure: str | None = None,
+                    out: str | Path | None = None) -> tuple[str, Path]:
+    """Rank, log the ranking run (reused if one ranked the same runs), write and log the report; print where."""
+    sweep = load_sweep(uri, experiment, parent)
+    ranking = compute(sweep, structure)
+    run_id = ranking_run_for(ranking)
+    path = write_report(ranking, run_id, out)
+    print(top_text(ranking))
+    for note in ranking.notes:
+        print(f"  note: {note}")
+    print(f"ranking run: {run_id}\nreport:      {path}\nMLflow UI:   {ui_hint(sweep, run_id)}", flush=True)
+    return run_id, path

@@ -1,43 +1,28 @@
-"""Rank a sweep's models by validation FIT and log the lab's comparisons (§3.7) to a ranking run.
+"""Rank a sweep's models by validation FIT and compute the lab's comparisons (§3.7) for the ranking run.
 
-    python -m maglev.rank [--experiment NAME] [--parent RUN_ID] [--structure S] [--tracking-uri URI]
-
-Reads the FINISHED model runs of a sweep (default: the latest; stale RUNNING runs are
-reaped first), ranks them by ``val_fit`` — ties go to the simpler model (fewer
-``n_params``) — and logs to a new run (``kind=ranking``, tag ``sweep_parent``; not a
+Reads the FINISHED model runs of a sweep (:mod:`maglev.study.store`), ranks them by
+``val_fit`` — ties go to the simpler model (fewer ``n_params``) — and builds what the
+ranking run logs (:func:`log_ranking`; ``kind=ranking``, tag ``sweep_parent``; not a
 child, so the sweep's run counts stay those of its models): the full table and the top
-four (CSV and Markdown), best vs worst (Bode, pole-zero maps, residual correlations) and,
-for one structure, binary- vs uniform-input models (FIT table and plot, plus FIT of every
-such model on every one of their validation sets, so they are also compared on the same
-data).  Prints the top four.  ``RankingCallback`` does this and writes the report
-(:mod:`maglev.report`) at the end of every multirun.
+four (CSV and Markdown), best vs worst (Bode, pole-zero maps, residual correlations)
+and, for one structure, binary- vs uniform-input models (FIT table and plot, plus FIT of
+every such model on every one of their validation sets, so they are also compared on
+the same data).  ``maglev rank`` and the end-of-sweep callback call it.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
-import logging
 import math
-import sys
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from hydra.experimental.callback import Callback  # noqa: E402
-from omegaconf import DictConfig  # noqa: E402
-
-from maglev.study.tracking import log_files  # noqa: E402
-from maglev.sweep_runs import Sweep, SweepError, dataset_configs, default_uri, load_model, load_sweep  # noqa: E402
-from maglev.validate import ResidResult  # noqa: E402
-
-log = logging.getLogger("maglev.rank")
+from maglev.study.store import Sweep, SweepError, artifact_json, dataset_configs, load_model, run_config
+from maglev.study.tracking import log_files
+from maglev.validate import ResidResult
 
 TOP = 4
 TABLE_COLUMNS = ["rank", "name", "structure", "orders", "dataset", "input_class", "val_fit", "n_params",
@@ -150,8 +135,6 @@ class Ranking:
 
 def run_resid(sweep: Sweep, row: pd.Series, model):
     """The run's residual analysis: its ``resid/resid.json``, else recomputed from its logged config."""
-    from maglev.sweep_runs import artifact_json, run_config
-
     logged = artifact_json(sweep.client, row["run_id"], "resid/resid.json")
     if logged is not None:
         return ResidResult.from_dict(logged)
@@ -165,7 +148,7 @@ def run_resid(sweep: Sweep, row: pd.Series, model):
 
 def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> Ranking:
     """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures."""
-    from maglev.rank_figures import best_worst_figures, comparison_figure, png
+    from maglev.study.figures import best_worst_figures, comparison_figure, png
 
     table = rank_table(sweep.runs)
     chosen = choose_structure(table, structure)
@@ -277,91 +260,3 @@ def ui_hint(sweep: Sweep, run_id: str) -> str:
         return (f"mlflow ui --backend-store-uri {sweep.uri}   # then open "
                 f"http://127.0.0.1:5000/#/experiments/{sweep.experiment_id}/runs/{run_id}")
     return f"{sweep.uri.rstrip('/')}/#/experiments/{sweep.experiment_id}/runs/{run_id}"
-
-
-# ---------------------------------------------------------------------------- CLI and Hydra callback
-def add_store_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--tracking-uri", default=None,
-                   help="default: $MLFLOW_TRACKING_URI or sqlite:///<repo>/mlruns/mlflow.db")
-    p.add_argument("--experiment", default="maglev")
-    p.add_argument("--parent", default=None, help="the sweep's parent run id (default: the latest sweep)")
-    p.add_argument("--structure", default=None, choices=["arx", "armax", "oe", "bj"],
-                   help="structure of the binary vs uniform comparison (default: best with both classes)")
-
-
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m maglev.rank", description=__doc__.split("\n\n")[0])
-    add_store_args(p)
-    a = p.parse_args(argv)
-    try:
-        sweep = load_sweep(a.tracking_uri or default_uri(), a.experiment, a.parent)
-        ranking = compute(sweep, a.structure)
-        run_id = log_ranking(ranking)
-    except SweepError as exc:
-        print(f"maglev.rank: {exc}", file=sys.stderr)
-        return 2
-    print(top_text(ranking))
-    for note in ranking.notes:
-        print(f"  note: {note}")
-    print(f"ranking run {run_id}\n  {ui_hint(sweep, run_id)}")
-    return 0
-
-
-def parent_of_sweep(sweep_dir: str) -> str | None:
-    """The parent run id the sweep callback wrote to ``<sweep dir>/parent_run_id``, else its env variable."""
-    import os
-
-    from maglev.study.tracking import PARENT_ENV, PARENT_FILE
-
-    f = Path(sweep_dir) / PARENT_FILE
-    text = f.read_text().strip() if f.is_file() else ""
-    return text or os.environ.get(PARENT_ENV) or None
-
-
-class RankingCallback(Callback):
-    """Hydra callback: at the end of a multirun, rank the sweep, log the ranking run and write the report.
-
-    Order-independent with ``maglev.study.callback.SweepCallback`` (it reads the parent id
-    from the sweep dir); errors are logged, never raised, so a sweep's exit status is its jobs'.
-    """
-
-    def __init__(self, structure: str | None = None, report_dir: str | None = None) -> None:
-        self.structure = structure
-        self.report_dir = report_dir
-
-    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        from hydra.core.hydra_config import HydraConfig
-
-        from maglev.study.callback import task_config
-
-        HydraConfig.instance().set_config(config)
-        task = task_config(config)
-        parent = parent_of_sweep(str(config.hydra.sweep.dir))
-        if parent is None:
-            log.warning("ranking skipped: no parent run id in %s", config.hydra.sweep.dir)
-            return
-        try:
-            rank_and_report(task["tracking"]["uri"], task["tracking"]["experiment"], parent,
-                            self.structure, self.report_dir)
-        except SweepError as exc:
-            log.warning("ranking/report not made: %s", exc)
-        except Exception as exc:  # noqa: BLE001 — a report bug must not fail a finished sweep
-            log.exception("ranking/report failed: %s: %s", type(exc).__name__, exc)
-
-
-def rank_and_report(uri: str, experiment: str, parent: str | None, structure: str | None = None,
-                    report_dir: str | None = None) -> tuple[str, Path]:
-    """Rank, log the ranking run (reused if one ranked the same runs), write and log the report; print where."""
-    from maglev.report import ranking_run_for, write_report
-
-    sweep = load_sweep(uri, experiment, parent)
-    ranking = compute(sweep, structure)
-    run_id = ranking_run_for(ranking)
-    path = write_report(ranking, run_id, report_dir)
-    print(top_text(ranking))
-    print(f"ranking run: {run_id}\nreport:      {path}\nMLflow UI:   {ui_hint(sweep, run_id)}", flush=True)
-    return run_id, path
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

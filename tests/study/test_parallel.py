@@ -14,14 +14,15 @@ from pathlib import Path
 
 import pytest
 
-from .test_study import REPO, TINY, all_runs, run_study
+from .harness import REPO, TINY, all_runs, study_process
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
 
 
+@pytest.mark.slow
 def test_joblib_two_workers_lose_no_run(tmp_path):
     pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
-    run_study(tmp_path, "-m", "hydra/launcher=parallel", "hydra.launcher.n_jobs=2",
+    study_process(tmp_path, "-m", "~hydra.callbacks.maglev_rank", "hydra/launcher=parallel", "hydra.launcher.n_jobs=2",
               "dataset=uniform_narrow,binary_a025", "structure=arx,oe", "structure.order=2,3", *TINY)
     _, _, runs = all_runs(tmp_path)
     parent = [r for r in runs if r.data.tags.get("kind") == "sweep"]

@@ -1,0 +1,155 @@
+"""The ``maglev`` command: every operation on the study and the simulator, one subcommand each.
+
+    maglev rank       [--tracking-uri URI] [--experiment NAME] [--parent RUN_ID] [--structure S]
+    maglev report     [same] [--out FILE|DIR]
+    maglev reproduce  RUN_ID [--tracking-uri URI] [--data-dir DIR] [--log]
+    maglev reap       [--tracking-uri URI] [--experiment NAME] [--older-than-hours H]
+    maglev ui         [--tracking-uri URI] [--port 5000]
+    maglev labdata    --out DIR [--seed N]          (the simulator's lab dataset)
+    maglev calibrate  [--refdata DIR] [--no-fit]    (refit the simulator to the real records)
+
+``python -m maglev …`` is the same command.  The store defaults to
+:func:`maglev.paths.default_store_uri` (``$MLFLOW_TRACKING_URI`` or the project's
+``mlruns/mlflow.db``).  User mistakes print one line on stderr and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from collections.abc import Callable
+
+warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
+
+STRUCTURES = ("arx", "armax", "oe", "bj")
+
+
+def _store_args(p: argparse.ArgumentParser, sweep: bool = True) -> None:
+    p.add_argument("--tracking-uri", default=None,
+                   help="default: $MLFLOW_TRACKING_URI or sqlite:///<repo>/mlruns/mlflow.db")
+    p.add_argument("--experiment", default="maglev", help="MLflow experiment (default: maglev)")
+    if sweep:
+        p.add_argument("--parent", default=None, help="the sweep's parent run id (default: the latest sweep)")
+        p.add_argument("--structure", default=None, choices=STRUCTURES,
+                       help="structure of the binary vs uniform comparison (default: best with both classes)")
+
+
+def _uri(a: argparse.Namespace) -> str:
+    from maglev.paths import default_store_uri
+
+    return a.tracking_uri or default_store_uri()
+
+
+def _rank(a: argparse.Namespace) -> int:
+    from maglev.study.ranking import compute, log_ranking, top_text, ui_hint
+    from maglev.study.store import load_sweep
+
+    sweep = load_sweep(_uri(a), a.experiment, a.parent)
+    ranking = compute(sweep, a.structure)
+    run_id = log_ranking(ranking)
+    print(top_text(ranking))
+    for note in ranking.notes:
+        print(f"  note: {note}")
+    print(f"ranking run {run_id}\n  {ui_hint(sweep, run_id)}")
+    return 0
+
+
+def _report(a: argparse.Namespace) -> int:
+    from maglev.study.report import rank_and_report
+
+    rank_and_report(_uri(a), a.experiment, a.parent, a.structure, a.out)
+    return 0
+
+
+def _reproduce(a: argparse.Namespace) -> int:
+    from maglev.study.reproduce import reproduce, same
+
+    ok, rows = reproduce(a.run_id, _uri(a), a.data_dir, a.log)
+    width = max((len(k) for k, *_ in rows), default=6)
+    print(f"{'metric':{width}s}  {'logged':>22s}  {'recomputed':>22s}")
+    for key, old, new in rows:
+        print(f"{key:{width}s}  {old:22.15g}  {new:22.15g}  {'' if same(old, new) else 'DIFFERENT'}")
+    n_diff = sum(not same(o, n) for _, o, n in rows)
+    print(f"run {a.run_id}: {'metrics identical' if ok else f'{n_diff} metric(s) differ'} "
+          f"({len(rows)} compared, timings excluded)")
+    return 0 if ok else 1
+
+
+def _reap(a: argparse.Namespace) -> int:
+    from maglev.study.reap import reap
+    from maglev.study.store import open_store
+
+    client, exp_id = open_store(_uri(a), a.experiment)
+    killed = reap(client, [exp_id], a.older_than_hours)
+    print(f"{len(killed)} stale run(s) marked KILLED" + (": " + " ".join(killed) if killed else ""))
+    return 0
+
+
+def _ui(a: argparse.Namespace) -> int:
+    from maglev.study.ui import serve
+
+    return serve(_uri(a), a.experiment, a.host, a.port)
+
+
+def _forward(module: str) -> Callable[[list[str]], int]:
+    def run(argv: list[str]) -> int:
+        import importlib
+
+        return importlib.import_module(module).main(argv)
+
+    return run
+
+
+# the simulator's commands keep their own options (they live below the study layer)
+FORWARDED = {"labdata": ("maglev.labdata", "write the simulated lab dataset (.mat and .csv)"),
+             "calibrate": ("maglev.calibrate", "refit the simulator to the real records and print sim vs real")}
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="maglev", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    rank = sub.add_parser("rank", help="rank a sweep's runs and log a ranking run")
+    _store_args(rank)
+    rank.set_defaults(func=_rank)
+    report = sub.add_parser("report", help="write a sweep's lab report (HTML) and log it")
+    _store_args(report)
+    report.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>.html)")
+    report.set_defaults(func=_report)
+    repro = sub.add_parser("reproduce", help="recompute a run from its logged config; exit 0 if identical")
+    repro.add_argument("run_id")
+    repro.add_argument("--tracking-uri", default=None, help="default: $MLFLOW_TRACKING_URI or the local store")
+    repro.add_argument("--data-dir", default=None, help="where the real records are, if not where they were")
+    repro.add_argument("--log", action="store_true", help="log the reproduction as a new run")
+    repro.set_defaults(func=_reproduce)
+    reap = sub.add_parser("reap", help="mark runs left RUNNING by dead processes KILLED")
+    _store_args(reap, sweep=False)
+    reap.add_argument("--older-than-hours", type=float, default=None,
+                      help="also runs of any host started longer ago than this")
+    reap.set_defaults(func=_reap)
+    ui = sub.add_parser("ui", help="start the MLflow UI on the store (one worker, 127.0.0.1)")
+    _store_args(ui, sweep=False)
+    ui.add_argument("--host", default="127.0.0.1")
+    ui.add_argument("--port", type=int, default=5000)
+    ui.set_defaults(func=_ui)
+    for name, (_, text) in FORWARDED.items():
+        sub.add_parser(name, help=text, add_help=False)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    from maglev.study.store import SweepError
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in FORWARDED:
+        return _forward(FORWARDED[argv[0]][0])(argv[1:])
+    a = parser().parse_args(argv)
+    try:
+        return a.func(a)
+    except SweepError as exc:
+        print(f"maglev {a.command}: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,102 @@
+"""Run the study in-process through Hydra's own API, into a temporary MLflow store.
+
+``launch`` composes ``conf/`` exactly as ``python study.py`` does (same config, same
+callbacks, same task function) but in the test process, so a sweep costs its runs and
+not ~2 s of imports per subprocess.  Tests that are about the command line itself
+(``study.py`` as a process, joblib workers, a tracking server) start subprocesses.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
+
+REPO = Path(__file__).resolve().parents[2]
+CONF = REPO / "conf"
+TINY = ["dataset.duration_s=4", "dataset.preprocess.trim=500"]  # 3500 samples → 875 + 875 after decimation
+
+
+def store_overrides(store: Path) -> list[str]:
+    """Everything a launch writes goes under ``store`` (never the repository's mlruns/, multirun/, reports/)."""
+    return [f"tracking.uri=sqlite:///{store}/mlflow.db", f"tracking.artifact_location={store}/artifacts",
+            f"hydra.run.dir={store}/outputs", f"hydra.sweep.dir={store}/multirun"]
+
+
+def launch(store: Path, *overrides: str, multirun: bool = True, rank: bool = False):
+    """``python study.py [-m] OVERRIDES`` in-process; the ranking callback only with ``rank=True``
+    (then the report goes to ``store/reports``).  Returns Hydra's job returns."""
+    from hydra._internal.hydra import Hydra
+    from hydra._internal.utils import create_config_search_path
+    from hydra.core.global_hydra import GlobalHydra
+
+    import maglev.study.schema  # noqa: F401  (schemas and ${maglev.root:})
+    from maglev.study.job import run
+
+    args = [*overrides, *store_overrides(store), f"hydra.mode={'MULTIRUN' if multirun else 'RUN'}"]
+    args.append(f"hydra.callbacks.maglev_rank.report_dir={store}/reports" if rank else "~hydra.callbacks.maglev_rank")
+    GlobalHydra.instance().clear()
+    hydra = Hydra.create_main_hydra2(task_name="study", config_search_path=create_config_search_path(f"file://{CONF}"))
+    try:
+        go = hydra.multirun if multirun else hydra.run
+        return go(config_name="config", task_function=run, overrides=args, with_log_configuration=False)
+    finally:
+        GlobalHydra.instance().clear()
+
+
+@contextlib.contextmanager
+def study_log():
+    """Collect the messages of the study's logger (``maglev.study``) at INFO while the block runs."""
+    lines: list[str] = []
+
+    class Collect(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            lines.append(record.getMessage())
+
+    logger, handler = logging.getLogger("maglev.study"), Collect(logging.INFO)
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield lines
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+
+
+def study_process(store: Path, *args: str, timeout: float = 300, env: dict | None = None,
+                  check: bool = True) -> subprocess.CompletedProcess:
+    """``python study.py ARGS`` as a process (for what only a process shows), logging under ``store``."""
+    import os
+
+    cmd = [sys.executable, str(REPO / "study.py"), *args, *store_overrides(store)]
+    env = {**os.environ, **(env or {})}
+    env.pop("MLFLOW_TRACKING_URI", None)
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=timeout, env=env)
+    if check:
+        assert proc.returncode == 0, proc.stderr[-4000:]
+    return proc
+
+
+def client_for(store: Path):
+    from mlflow import MlflowClient
+
+    client = MlflowClient(tracking_uri=f"sqlite:///{store}/mlflow.db")
+    return client, client.get_experiment_by_name("maglev").experiment_id
+
+
+def all_runs(store: Path):
+    client, exp_id = client_for(store)
+    return client, exp_id, client.search_runs([exp_id], max_results=1000)
+
+
+def artifact_paths(client, run_id: str, path: str | None = None) -> set[str]:
+    out = set()
+    for a in client.list_artifacts(run_id, path):
+        out |= artifact_paths(client, run_id, a.path) if a.is_dir else {a.path}
+    return out
