@@ -33,6 +33,7 @@ from .structure import PolySpec
 from .threads import single_threaded_blas
 
 AUTO_STATE_GAIN = 1e-3
+ARX_AUTO = "auto→na initial outputs"  # how arx reports MATLAB's default convention
 START_RATIO = 10.0
 ABANDON_MARGIN = 0.01  # a secondary start must be within 1 % of the best minimum by then
 
@@ -47,12 +48,13 @@ def arx(data: IOData, na: int, nb: int, nk: int, initial_condition: str = "auto"
     phi, target = _regression(y, u, spec, first)
     r, qty = triangular_factor(phi, target)
     theta = _solve_triangular(r, qty, data)
-    e = target - phi @ theta
+    e = np.zeros(y.size)  # the first residuals vanish: their pre-sample data are free
+    e[first:] = target - phi @ theta
     A, B, *_ = spec.polys(theta)
     report = FitReport.from_residuals(
-        e, target, spec.n_params, 0,
+        e, y, spec.n_params, first,
         method="least squares", iterations=0, termination="exact solution",
-        initial_condition=initial_condition,
+        initial_condition=ARX_AUTO if initial_condition == "auto" else initial_condition,
     )
     return _model(spec, A, B, None, None, None, data, e, r, report)
 
@@ -305,12 +307,11 @@ def _pem(
     fit_states = _wants_states(spec, starts, y, u, initial_condition)
     best = _best_minimum(spec, starts, y, u, fit_states, max_iterations, tolerance)
     ev = best.evaluation
-    n_initial = ev.n_initial if initial_condition != "backcast" else 0
     mode = initial_condition
     if initial_condition == "auto":
         mode = "auto→estimate" if fit_states else "auto→zero"
-    report = FitReport.from_residuals(
-        ev.e, y, spec.n_params, n_initial,
+    report = FitReport.from_residuals(  # fitted states count in d, backcast too (as in MATLAB)
+        ev.e, y, spec.n_params, ev.n_initial,
         method="prediction-error minimisation (Levenberg-Marquardt)",
         iterations=best.iterations, termination=best.termination, initial_condition=mode,
     )
