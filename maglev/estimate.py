@@ -32,7 +32,7 @@ from .polynomials import filt, stabilize
 from .structure import PolySpec
 from .threads import single_threaded_blas
 
-AUTO_STATE_GAIN = 1e-3
+AUTO_NORM_RATIO = 1.05  # MATLAB's AutoInitialState threshold: ‖e_zero‖ / ‖e_fitted‖ at the start
 ARX_AUTO = "auto→na initial outputs"  # how arx reports MATLAB's default convention
 START_RATIO = 10.0
 ABANDON_MARGIN = 0.01  # a secondary start must be within 1 % of the best minimum by then
@@ -309,7 +309,7 @@ def _pem(
     ev = best.evaluation
     mode = initial_condition
     if initial_condition == "auto":
-        mode = "auto→estimate" if fit_states else "auto→zero"
+        mode = "auto→backcast" if fit_states else "auto→zero"
     report = FitReport.from_residuals(  # fitted states count in d, backcast too (as in MATLAB)
         ev.e, y, spec.n_params, ev.n_initial,
         method="prediction-error minimisation (Levenberg-Marquardt)",
@@ -372,7 +372,9 @@ def _general_from_bj(spec: PolySpec, y, u, max_iterations, tolerance) -> np.ndar
 
 
 def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condition: str) -> bool:
-    """Whether to fit initial states; "auto" decides at the best starting point."""
+    """Whether to fit initial states; "auto" decides at the best starting point by
+    MATLAB's rule: fit them ("backcast") when the prediction-error norm with zero
+    states exceeds the norm with fitted states by more than AUTO_NORM_RATIO."""
     if initial_condition in ("estimate", "backcast"):
         return True
     if initial_condition == "zero":
@@ -382,7 +384,7 @@ def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condit
     theta0 = candidates[int(np.argmin(losses))]
     zero = min(losses)
     fitted = evaluate(spec, theta0, y, u, True, False).loss
-    return zero > 0 and (zero - fitted) / zero > AUTO_STATE_GAIN
+    return zero > AUTO_NORM_RATIO**2 * fitted
 
 
 def _model(spec, A, B, C, D, F, data: IOData, e: np.ndarray, r: np.ndarray, report: FitReport) -> PolyModel:
