@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .polynomials import free_responses, transient_length
+from .polynomials import free_response_window, free_responses, n_states
 
 INITIAL_CONDITIONS = ("zero", "estimate", "backcast", "auto")
 
@@ -19,14 +19,16 @@ INITIAL_CONDITIONS = ("zero", "estimate", "backcast", "auto")
 def free_response_matrix(filters: list[tuple[np.ndarray, np.ndarray]], n: int) -> np.ndarray:
     """Free responses of all ``(num, den)`` filters, truncated to their common transient window.
 
-    Returns an ``M × k`` matrix with ``M ≤ n`` rows (the transient window) and one
-    column per filter state.
+    Returns an ``M × k`` matrix with ``M ≤ n`` rows and one column per filter state.
+    The window covers every state of every filter: the numerator's delays plus the
+    decay of the denominator (an ARX predictor's filters B and 1 − A are FIR, and all
+    max(na, nb+nk−1) of their states must be fitted, not just the first two).
     """
     filters = [(np.asarray(b, float), np.asarray(a, float)) for b, a in filters]
     active = [(b, a) for b, a in filters if np.any(b != 0)]
     if not active:
         return np.zeros((0, 0))
-    m = max(transient_length(a, n) for _, a in active)
+    m = max(free_response_window(n_states(b, a), a, n) for b, a in active)
     blocks = [free_responses(b, a, m) for b, a in active]
     return np.hstack(blocks) if blocks else np.zeros((m, 0))
 

@@ -59,6 +59,8 @@ class FitReport:
     ) -> "FitReport":
         """Compute loss and information criteria from estimation residuals.
 
+        MATLAB's definitions: N = all samples of the record (``e`` has one entry per
+        sample; residuals freed by estimated initial conditions are zero),
         V = Σe²/N, d = parameters + estimated initial values,
         FPE = V(1+d/N)/(1-d/N), AIC = N ln V + 2d + N(ln 2π + 1),
         AICc = AIC + 2d(d+1)/(N-d-1), BIC = N ln V + d ln N + N(ln 2π + 1),
@@ -277,8 +279,16 @@ class PolyModel:
     ) -> np.ndarray:
         """k-step-ahead prediction of ``data.y`` (``horizon=inf`` simulates).
 
-        ``initial_condition="estimate"`` fits the predictor's initial state to the
-        data by least squares (as MATLAB's ``compare`` and ``predict`` do by default).
+        ``initial_condition="estimate"`` fits the initial state of the horizon-k
+        predictor ŷ = Wu u + Wy y (every state of both filters, numerator included) by
+        least squares of the k-step prediction error, as MATLAB's ``compare`` and
+        ``predict`` do by default: they fit the initial state of the predictor model
+        that ``predict`` returns, whose free responses are these.  For ARX (any C·F = 1)
+        that frees the pre-sample outputs and inputs, so the first
+        max(na, nb+nk−1) + k − 1 predictions equal the data and the rest use measured
+        data only.  For ``horizon=inf`` the free response of G = B/(A F) is fitted to
+        the simulation error (for ARX: the na pre-sample outputs and nb+nk−1 pre-sample
+        inputs).
         """
         (nu, du), (ny, dy) = self.predictor(horizon)
         self._check_predictor_stable(horizon, initial_condition, du, dy)

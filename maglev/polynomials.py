@@ -72,6 +72,16 @@ def transient_length(den: np.ndarray, n_max: int, tol: float = 1e-10) -> int:
     return int(min(n_max, max(n, order + 1)))
 
 
+def free_response_window(n_delays: int, den: np.ndarray, n_max: int, tol: float = 1e-10) -> int:
+    """Samples that hold the free responses z(q⁻¹)/den · δ with deg z < ``n_delays`` (at most ``n_max``).
+
+    A free response is 1/den's impulse response delayed by up to ``n_delays`` − 1 samples,
+    so the window is those delays plus the decay of 1/den.  For an FIR filter (den = 1)
+    that is every state; sizing by the denominator alone would miss the numerator's.
+    """
+    return int(min(n_max, n_delays + transient_length(den, n_max, tol)))
+
+
 def is_stable(p: np.ndarray, margin: float = 0.0) -> bool:
     """True if all roots of ``p(q⁻¹)`` (as a polynomial in z) lie strictly inside the unit circle."""
     if len(p) <= 1:

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.linalg import qr
 from scipy.linalg.lapack import dgeqrf
 
-from .polynomials import filt, polymul, stabilize, transient_length
+from .polynomials import filt, free_response_window, polymul, stabilize
 from .structure import PolySpec
 from .threads import single_threaded_blas
 
@@ -102,7 +102,7 @@ def state_responses(spec: PolySpec, C: np.ndarray, F: np.ndarray, n: int) -> np.
     k = max(P.size, spec.na + spec.nd + spec.nf + 1, spec.nd + spec.nb + spec.nk) - 1
     if k == 0:
         return np.zeros((0, 0))
-    m = transient_length(P, n)
+    m = free_response_window(k, P, n)
     impulse = np.zeros(m)
     impulse[0] = 1.0
     h = filt(np.ones(1), P, impulse)
