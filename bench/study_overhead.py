@@ -32,6 +32,7 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from maglev.estimate import estimate  # noqa: E402
 from maglev.study import datasets, identify as ident, tracking  # noqa: E402
+from maglev.structures import get as structure  # noqa: E402
 from maglev.study.config import config_hash, flatten  # noqa: E402
 from maglev.study.figures import run_figures  # noqa: E402
 from maglev.validate import compare, resid  # noqa: E402
@@ -67,7 +68,7 @@ def one_run(cfg: dict, client, exp_id: str) -> dict[str, float]:
     prep = datasets.load(cfg["dataset"], cfg["data_dir"])
     lap("data")
     st = cfg["structure"]
-    opts = {} if st["name"] == "arx" else {"max_iterations": st["max_iterations"]}
+    opts = {} if structure(st["name"]).least_squares else {"max_iterations": st["max_iterations"]}
     model = estimate(prep.est, st["name"], ident.orders_of(st), st["initial_condition"], **opts)
     lap("estimate")
     fit, yhat = compare(prep.val, model, 1)

@@ -9,7 +9,7 @@ only in the study/tracking modules.
 from .data import IOData
 from .estimate import armax, arx, bj, oe, pem
 from .models import FitReport, PolyModel
-from .structure import PolySpec
+from .structures import PolySpec
 
 __all__ = ["IOData", "PolyModel", "PolySpec", "FitReport", "arx", "armax", "oe", "bj", "pem"]
 __version__ = "0.1.0"

@@ -42,7 +42,8 @@ from .initial_state import INITIAL_CONDITIONS
 from .models import FitReport, PolyModel
 from .prediction_error import CONVERGED, evaluate, minimise, project, triangular_factor
 from .polynomials import filt, stabilize
-from .structure import PolySpec
+from .structures import PolySpec
+from .structures import get as get_structure
 from .threads import single_threaded_blas
 
 AUTO_NORM_RATIO = 1.05  # MATLAB's AutoInitialState threshold: ‖e_zero‖ / ‖e_fitted‖ at the start
@@ -52,10 +53,14 @@ ABANDON_MARGIN = 0.01  # a secondary start must be within 1 % of the best minimu
 
 
 # ---------------------------------------------------------------------------- public API
-@single_threaded_blas
 def arx(data: IOData, na: int, nb: int, nk: int, initial_condition: str = "auto") -> PolyModel:
     """ARX  A(q) y = B(q) u + e  by least squares (see the module docstring for the rows used)."""
-    spec = PolySpec("arx", na=na, nb=nb, nk=nk)
+    return _least_squares(data, PolySpec("arx", na=na, nb=nb, nk=nk), initial_condition)
+
+
+@single_threaded_blas
+def _least_squares(data: IOData, spec: PolySpec, initial_condition: str) -> PolyModel:
+    """A structure with only A and B free (ARX and its special cases) by linear least squares."""
     y, u = _checked(data, spec, initial_condition)
     first = {"auto": spec.na, "zero": 0}.get(initial_condition, spec.max_lag)
     phi, target = _regression(y, u, spec, first)
@@ -96,10 +101,16 @@ def pem(
 
 
 def estimate(data: IOData, structure: str, orders, initial_condition: str = "auto", **options) -> PolyModel:
-    """Estimate by structure name and MATLAB order vector, e.g. ``estimate(d, "bj", [2, 2, 2, 2, 1])``."""
+    """Estimate by structure name and MATLAB order vector, e.g. ``estimate(d, "bj", [2, 2, 2, 2, 1])``.
+
+    Any registered structure (:mod:`maglev.structures`) works: least squares when only A
+    and B are free, prediction-error minimisation otherwise.
+    """
     spec = PolySpec.from_orders(structure, orders)
-    if structure == "arx":
-        return arx(data, spec.na, spec.nb, spec.nk, initial_condition)
+    if get_structure(structure).least_squares:
+        if options:
+            raise ValueError(f"{structure} is estimated by least squares and takes no options, got {sorted(options)}")
+        return _least_squares(data, spec, initial_condition)
     return _pem(data, spec, initial_condition, **options)
 
 

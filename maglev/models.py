@@ -20,8 +20,8 @@ from .data import IOData
 from .fit import fit_percent
 from .initial_state import INITIAL_CONDITIONS, fit_initial_state
 from .polynomials import filt, is_stable, polymul
+from .structures import get as get_structure
 
-STRUCTURES = ("arx", "armax", "oe", "bj", "pem")
 
 
 @dataclass(frozen=True)
@@ -121,8 +121,10 @@ class PolyModel:
         if self.nk < 0 or B.size < self.nk or np.any(B[: self.nk] != 0):
             raise ValueError(f"PolyModel: B must start with nk={self.nk} zeros, got {B!r}")
         object.__setattr__(self, "B", B)
-        if self.structure not in STRUCTURES:
-            raise ValueError(f"PolyModel: structure must be one of {STRUCTURES}, got {self.structure!r}")
+        try:
+            get_structure(self.structure)
+        except ValueError as exc:
+            raise ValueError(f"PolyModel: {exc}") from None
         if not (self.Ts > 0):
             raise ValueError(f"PolyModel: Ts must be positive, got {self.Ts!r}")
         if self.covariance is not None:
@@ -152,13 +154,7 @@ class PolyModel:
     @property
     def orders(self) -> tuple[int, ...]:
         """Orders in MATLAB's order for the structure (e.g. ``[na nb nk]`` for ARX)."""
-        return {
-            "arx": (self.na, self.nb, self.nk),
-            "armax": (self.na, self.nb, self.nc, self.nk),
-            "oe": (self.nb, self.nf, self.nk),
-            "bj": (self.nb, self.nc, self.nd, self.nf, self.nk),
-            "pem": (self.na, self.nb, self.nc, self.nd, self.nf, self.nk),
-        }[self.structure]
+        return tuple(getattr(self, k) for k in get_structure(self.structure).orders)
 
     @property
     def label(self) -> str:

@@ -26,7 +26,7 @@ from scipy.linalg import qr
 from scipy.linalg.lapack import dgeqrf
 
 from .polynomials import filt, free_response_window, polymul, stabilize
-from .structure import PolySpec
+from .structures import PolySpec
 from .threads import single_threaded_blas
 
 MAX_RETRIES = 10  # damping grows ×2, ×4, ×8 … per failed try: past 1e5 × diag(JᵀJ) after ten

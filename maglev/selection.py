@@ -18,7 +18,7 @@ import pandas as pd
 
 from .data import IOData
 from .estimate import _regression
-from .structure import PolySpec
+from .structures import PolySpec
 
 TABLE_COLUMNS = ("na", "nb", "nk", "loss", "n_params", "n_estimation")
 

@@ -8,7 +8,7 @@ import pytest
 from maglev import estimate as E
 from maglev.data import IOData
 from maglev.prediction_error import minimise
-from maglev.structure import PolySpec
+from maglev.structures import PolySpec
 from maglev.validate import compare
 
 RECORDS = {"binary_signal_2": ("u", "y"), "white_noise_2": ("u2", "y2")}

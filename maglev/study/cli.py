@@ -22,16 +22,15 @@ from collections.abc import Callable
 
 warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
 
-STRUCTURES = ("arx", "armax", "oe", "bj")
-
-
 def _store_args(p: argparse.ArgumentParser, sweep: bool = True) -> None:
+    from maglev.structures import names as structure_names
+
     p.add_argument("--tracking-uri", default=None,
                    help="default: $MLFLOW_TRACKING_URI or sqlite:///<repo>/mlruns/mlflow.db")
     p.add_argument("--experiment", default="maglev", help="MLflow experiment (default: maglev)")
     if sweep:
         p.add_argument("--parent", default=None, help="the sweep's parent run id (default: the latest sweep)")
-        p.add_argument("--structure", default=None, choices=STRUCTURES,
+        p.add_argument("--structure", default=None, choices=structure_names(),
                        help="structure of the binary vs uniform comparison (default: best with both classes)")
 
 

@@ -43,7 +43,7 @@ def task_config(config: DictConfig) -> dict:
 
 def check(cfg: dict) -> None:
     """Semantic checks the schema cannot express; raise ``StudyConfigError`` naming the key."""
-    from maglev.structure import PolySpec
+    from maglev.structures import PolySpec
     from maglev.study.datasets import data_path
 
     st, ds = cfg["structure"], cfg["dataset"]

@@ -17,7 +17,7 @@ import numpy as np
 
 from maglev.estimate import estimate
 from maglev.models import PolyModel
-from maglev.structure import ORDER_NAMES
+from maglev.structures import get as structure
 from maglev.study.datasets import Prepared, load
 from maglev.threads import single_threaded_blas
 from maglev.validate import ResidResult, compare, resid
@@ -34,9 +34,9 @@ class RunOutput:
     figures: dict = field(default_factory=dict)  # artifact file name -> matplotlib Figure
 
 
-def orders_of(structure: dict) -> list[int]:
+def orders_of(section: dict) -> list[int]:
     """MATLAB order vector of a structure config section, e.g. ``[na nb nk]`` for ARX."""
-    return [int(structure[k]) for k in ORDER_NAMES[structure["name"]]]
+    return [int(section[k]) for k in structure(section["name"]).orders]
 
 
 def orders_string(structure: dict) -> str:
@@ -53,7 +53,7 @@ def identify(cfg: dict, figures: bool = True) -> RunOutput:
     """Estimate the configured structure on the dataset's estimation part and validate it."""
     st, study = cfg["structure"], cfg["study"]
     prep = load(cfg["dataset"], cfg["data_dir"])
-    options = {} if st["name"] == "arx" else {"max_iterations": int(st["max_iterations"])}
+    options = {} if structure(st["name"]).least_squares else {"max_iterations": int(st["max_iterations"])}
     tic = time.perf_counter()
     model = estimate(prep.est, st["name"], orders_of(st), st["initial_condition"], **options)
     fit_seconds = time.perf_counter() - tic

@@ -16,7 +16,7 @@ The resolver ``${maglev.root:}`` gives the project root (:func:`maglev.paths.pro
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, make_dataclass
 from enum import Enum
 from typing import Any, Optional
 
@@ -24,6 +24,8 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from maglev.paths import project_root
+from maglev.structures import get as get_structure
+from maglev.structures import names as structure_names
 
 
 if not OmegaConf.has_resolver("maglev.root"):
@@ -82,50 +84,27 @@ class FileDatasetCfg:
     preprocess: PreprocessCfg = field(default_factory=PreprocessCfg)
 
 
-@dataclass
-class ArxCfg:
-    name: str = "arx"
-    order: int = 2
-    na: int = "${.order}"  # type: ignore[assignment]
-    nb: int = "${.order}"  # type: ignore[assignment]
-    nk: int = 1
-    initial_condition: InitialCondition = InitialCondition.auto
+def structure_schema(name: str) -> type:
+    """The config schema of a registered structure: its MATLAB orders (each defaulting to ``order``),
+    ``nk``, ``initial_condition`` and, for iterative estimators, ``max_iterations``.
 
-
-@dataclass
-class ArmaxCfg:
-    name: str = "armax"
-    order: int = 2
-    na: int = "${.order}"  # type: ignore[assignment]
-    nb: int = "${.order}"  # type: ignore[assignment]
-    nc: int = "${.order}"  # type: ignore[assignment]
-    nk: int = 1
-    initial_condition: InitialCondition = InitialCondition.auto
-    max_iterations: int = 200
-
-
-@dataclass
-class OeCfg:
-    name: str = "oe"
-    order: int = 2
-    nb: int = "${.order}"  # type: ignore[assignment]
-    nf: int = "${.order}"  # type: ignore[assignment]
-    nk: int = 1
-    initial_condition: InitialCondition = InitialCondition.auto
-    max_iterations: int = 200
-
-
-@dataclass
-class BjCfg:
-    name: str = "bj"
-    order: int = 2
-    nb: int = "${.order}"  # type: ignore[assignment]
-    nc: int = "${.order}"  # type: ignore[assignment]
-    nd: int = "${.order}"  # type: ignore[assignment]
-    nf: int = "${.order}"  # type: ignore[assignment]
-    nk: int = 1
-    initial_condition: InitialCondition = InitialCondition.auto
-    max_iterations: int = 200
+    Generated from :mod:`maglev.structures`, so a key the structure does not have (``na``
+    for OE) is refused at composition, naming the key.  The class is bound to this
+    module under its name (``OeCfg``): joblib workers unpickle the config by reference
+    and must find the same class that their own import of this module registered.
+    """
+    entry = get_structure(name)
+    fields = [("name", str, field(default=name)), ("order", int, field(default=2))]
+    fields += [(k, int, field(default="${.order}")) for k in entry.free]
+    fields += [("nk", int, field(default=1)),
+               ("initial_condition", InitialCondition, field(default=InitialCondition.auto))]
+    if not entry.least_squares:
+        fields.append(("max_iterations", int, field(default=200)))
+    cls_name = f"{name.capitalize()}Cfg"
+    cls = make_dataclass(cls_name, fields)
+    cls.__module__, cls.__qualname__ = __name__, cls_name
+    globals()[cls_name] = cls
+    return cls
 
 
 @dataclass
@@ -171,7 +150,7 @@ class Config:
 
 
 DATASET_SCHEMAS = {"sim": SimDatasetCfg, "file": FileDatasetCfg}
-STRUCTURE_SCHEMAS = {"arx": ArxCfg, "armax": ArmaxCfg, "oe": OeCfg, "bj": BjCfg}
+STRUCTURE_SCHEMAS: dict[str, type] = {}
 
 
 def register() -> None:
@@ -180,10 +159,18 @@ def register() -> None:
     cs.store(name="base_config", node=Config)
     for kind, node in DATASET_SCHEMAS.items():
         cs.store(group="dataset", name=f"{kind}_schema", node=node)
-    for kind, node in STRUCTURE_SCHEMAS.items():
-        cs.store(group="structure", name=f"{kind}_schema", node=node)
+    for name in structure_names():
+        register_structure(name)
     cs.store(group="tracking", name="tracking_schema", node=TrackingCfg)
     cs.store(group="lab", name="lab_schema", node=LabCfg)
+
+
+def register_structure(name: str) -> type:
+    """Generate and register the schema ``structure/<name>_schema`` of a registered structure (idempotent)."""
+    if name not in STRUCTURE_SCHEMAS:
+        STRUCTURE_SCHEMAS[name] = structure_schema(name)
+        ConfigStore.instance().store(group="structure", name=f"{name}_schema", node=STRUCTURE_SCHEMAS[name])
+    return STRUCTURE_SCHEMAS[name]
 
 
 def typed(cfg: DictConfig) -> DictConfig:
@@ -196,8 +183,9 @@ def typed(cfg: DictConfig) -> DictConfig:
     st_kind = OmegaConf.select(cfg, "structure.name", default="arx")
     if ds_kind not in DATASET_SCHEMAS:
         raise ValueError(f"dataset.source must be one of {list(DATASET_SCHEMAS)}, got {ds_kind!r}")
-    if st_kind not in STRUCTURE_SCHEMAS:
-        raise ValueError(f"structure.name must be one of {list(STRUCTURE_SCHEMAS)}, got {st_kind!r}")
+    if st_kind not in structure_names():
+        raise ValueError(f"structure.name must be one of {list(structure_names())}, got {st_kind!r}")
+    register_structure(st_kind)
     base.dataset = OmegaConf.structured(DATASET_SCHEMAS[ds_kind])
     base.structure = OmegaConf.structured(STRUCTURE_SCHEMAS[st_kind])
     return OmegaConf.merge(base, cfg)

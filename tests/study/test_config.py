@@ -8,7 +8,7 @@ from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError, ValidationError
 
-from maglev.structure import ORDER_NAMES
+from maglev.structures import get as structure
 from maglev.study import schema  # noqa: F401  (registers schemas and ${maglev.root:})
 from maglev.study.config import StudyConfigError, check, config_hash, plain_config
 
@@ -81,7 +81,7 @@ def test_data_dir_defaults_beside_the_repo_and_follows_the_environment(monkeypat
 @pytest.mark.parametrize("name", STRUCTURES)
 def test_structures_and_order_overrides(name):
     c = task(cfg_for([f"structure={name}", "structure.order=3", "structure.nk=1"]))["structure"]
-    keys = ORDER_NAMES[name]
+    keys = structure(name).orders
     assert [c[k] for k in keys] == [3] * (len(keys) - 1) + [1]
     one = keys[0]
     c = task(cfg_for([f"structure={name}", f"structure.{one}=4"]))["structure"]

@@ -15,21 +15,12 @@ from collections.abc import Iterable
 import numpy as np
 import pandas as pd
 
+from maglev.structures import get as get_structure
 from maglev.study.figures import orders_figure, png
 from maglev.study.ranking import validation_note
 
 CANCEL_TOL = 0.05  # |pole - zero| below this (in the z-plane) flags a near pole-zero cancellation
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
-STRUCTURE_TEXT = {
-    "arx": "ARX  A(q) y = B(q) u + e: G and H share the poles of A; linear least squares, so cheap "
-           "and unique, but the noise model 1/A is forced.",
-    "armax": "ARMAX  A(q) y = B(q) u + C(q) e: adds a moving-average noise numerator C, so "
-             "coloured noise no longer biases G (PEM).",
-    "oe": "OE  y = B(q)/F(q) u + e: models G only, white output noise; G is unbiased even "
-          "when the noise is coloured, and one-step prediction equals simulation.",
-    "bj": "Box–Jenkins  y = B/F u + C/D e: independent dynamics and noise models, the most "
-          "flexible of the four (PEM).",
-}
 
 
 # ---------------------------------------------------------------------------- HTML helpers
@@ -210,7 +201,9 @@ def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> s
                    "validation fit, or vice versa.")
         if flagged:
             choice += " Near cancellations mean the order is higher than the data support."
-        parts.append(f"<h3>{esc(st.upper())}</h3>" + para(esc(STRUCTURE_TEXT.get(st, st))) + para(choice)
+        entry = get_structure(st)
+        parts.append(f"<h3>{esc(st.upper())}</h3>" + para(f"{esc(st.upper())} {esc(entry.equation)}: "
+                                                          f"{esc(entry.description)}") + para(choice)
                      + table(pd.DataFrame(rows), 4)
                      + (f"<details><summary>{len(flagged)} near cancellation(s), |p−z| &lt; {tol}</summary>"
                         + bullets(flagged) + "</details>" if flagged else ""))

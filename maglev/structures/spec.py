@@ -1,9 +1,9 @@
-"""Model structure specifications: which polynomials are free and of which orders.
+"""The unfitted model: a structure's orders and its parameter layout (scikit-learn's estimator spec).
 
-A `PolySpec` is the *unfitted* model (scikit-learn's estimator spec): it validates
-the orders once, knows the parameter layout ``[a, b, c, d, f]`` and turns a
-parameter vector into the five polynomials.  MATLAB's order conventions are kept:
-``arx [na nb nk]``, ``armax [na nb nc nk]``, ``oe [nb nf nk]``,
+A `PolySpec` validates the orders once against the structure's registry entry
+(:mod:`maglev.structures.registry`), knows the parameter layout ``[a, b, c, d, f]``
+and turns a parameter vector into the five polynomials.  MATLAB's order conventions
+are kept: ``arx [na nb nk]``, ``armax [na nb nc nk]``, ``oe [nb nf nk]``,
 ``bj [nb nc nd nf nk]``.
 """
 
@@ -13,13 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-ORDER_NAMES = {
-    "arx": ("na", "nb", "nk"),
-    "armax": ("na", "nb", "nc", "nk"),
-    "oe": ("nb", "nf", "nk"),
-    "bj": ("nb", "nc", "nd", "nf", "nk"),
-    "pem": ("na", "nb", "nc", "nd", "nf", "nk"),
-}
+from maglev.structures.registry import POLYNOMIAL_ORDERS, get
 
 
 @dataclass(frozen=True)
@@ -35,8 +29,7 @@ class PolySpec:
     nk: int = 1
 
     def __post_init__(self) -> None:
-        if self.structure not in ORDER_NAMES:
-            raise ValueError(f"unknown structure {self.structure!r}; expected one of {list(ORDER_NAMES)}")
+        entry = get(self.structure)
         for key in ("na", "nb", "nc", "nd", "nf", "nk"):
             value = getattr(self, key)
             if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
@@ -48,22 +41,18 @@ class PolySpec:
             if value < 0:
                 raise ValueError(f"{self.structure}: order {key} must be >= 0, got {value}")
             object.__setattr__(self, key, int(value))
-        if self.structure in ("oe", "bj") and self.nb < 1:
+        if "na" not in entry.free and self.nb < 1:
             raise ValueError(f"{self.structure}: nb must be >= 1 (a model with no input path), got {self.nb}")
-        if self.structure == "arx" and self.na + self.nb == 0:
-            raise ValueError("arx: na and nb are both 0; there is nothing to estimate")
-        free = {"arx": ("na", "nb"), "armax": ("na", "nb", "nc"), "oe": ("nb", "nf"),
-                "bj": ("nb", "nc", "nd", "nf"), "pem": ("na", "nb", "nc", "nd", "nf")}[self.structure]
-        for key in ("na", "nc", "nd", "nf"):
-            if key not in free and getattr(self, key) != 0:
-                raise ValueError(f"{self.structure}: has no {key} (orders are {list(ORDER_NAMES[self.structure])})")
+        if self.na + self.nb == 0:
+            raise ValueError(f"{self.structure}: na and nb are both 0; there is nothing to estimate")
+        for key in POLYNOMIAL_ORDERS:
+            if key not in entry.free and getattr(self, key) != 0:
+                raise ValueError(f"{self.structure}: has no {key} (orders are {list(entry.orders)})")
 
     @classmethod
     def from_orders(cls, structure: str, orders) -> "PolySpec":
         """Build from a MATLAB order vector, e.g. ``("bj", [2, 2, 2, 2, 1])``."""
-        names = ORDER_NAMES.get(structure)
-        if names is None:
-            raise ValueError(f"unknown structure {structure!r}; expected one of {list(ORDER_NAMES)}")
+        names = get(structure).orders
         orders = list(orders)
         if len(orders) != len(names):
             raise ValueError(
@@ -73,7 +62,7 @@ class PolySpec:
 
     @property
     def orders(self) -> tuple[int, ...]:
-        return tuple(getattr(self, k) for k in ORDER_NAMES[self.structure])
+        return tuple(getattr(self, k) for k in get(self.structure).orders)
 
     @property
     def label(self) -> str:
