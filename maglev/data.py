@@ -47,7 +47,7 @@ def _as_vector(values, what: str, source: str) -> np.ndarray:
     return arr
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class IOData:
     """A single-input single-output record sampled every ``Ts`` seconds.
 
@@ -74,17 +74,22 @@ class IOData:
             )
         if u.size < MIN_SAMPLES:
             raise ValueError(f"{src}: {u.size} samples is too few; expected at least {MIN_SAMPLES}")
-        try:
-            Ts = float(self.Ts)
-        except (TypeError, ValueError):
-            raise ValueError(f"{src}: Ts must be a positive number of seconds, got {self.Ts!r}") from None
-        if not math.isfinite(Ts) or Ts <= 0:
-            raise ValueError(f"{src}: Ts must be a positive number of seconds, got {self.Ts!r}")
+        Ts = _checked_ts(self.Ts, src)
         u.setflags(write=False)
         y.setflags(write=False)
         object.__setattr__(self, "u", u)
         object.__setattr__(self, "y", y)
         object.__setattr__(self, "Ts", Ts)
+
+    def __eq__(self, other: object) -> bool:
+        """Same samples, sampling period, name and offsets (``meta`` is not compared)."""
+        if not isinstance(other, IOData):
+            return NotImplemented
+        return (np.array_equal(self.u, other.u) and np.array_equal(self.y, other.y)
+                and (self.Ts, self.name, self.u_offset, self.y_offset)
+                == (other.Ts, other.name, other.u_offset, other.y_offset))
+
+    __hash__ = None  # type: ignore[assignment]  (holds arrays)
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -171,7 +176,12 @@ class IOData:
         if Ts is None:
             if "Ts" not in frame.columns:
                 raise ValueError(f"{path}: CSV has no sampling period; pass Ts= (seconds)")
-            Ts = float(frame["Ts"].iloc[0])
+            values = pd.to_numeric(frame["Ts"], errors="coerce").dropna().unique()
+            if values.size != 1:
+                raise ValueError(f"{path}: column 'Ts' must hold one constant sampling period, got "
+                                 f"{values.size} different values ({', '.join(f'{v:g}' for v in values[:4])}"
+                                 f"{', ...' if values.size > 4 else ''})")
+            Ts = float(values[0])
         for col in (u, y):
             values = pd.to_numeric(frame[col], errors="coerce")
             bad = values.isna() & frame[col].notna()
@@ -276,6 +286,9 @@ class IOData:
 
 
 def _checked_ts(Ts, source: str) -> float:
+    """``Ts`` as a positive finite float (seconds), or a ValueError naming the source; a bool or a string is no period."""
+    if isinstance(Ts, (bool, np.bool_, str, bytes)):
+        raise ValueError(f"{source}: Ts must be a positive number of seconds, got {Ts!r}")
     try:
         value = float(Ts)
     except (TypeError, ValueError):

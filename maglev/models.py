@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass, field
+from dataclasses import fields as dataclass_fields
 
 import numpy as np
 
@@ -87,7 +88,11 @@ class FitReport:
         )
 
 
-@dataclass(frozen=True)
+MODEL_KEYS = {"structure", "orders", "Ts", "nk", "A", "B", "C", "D", "F", "noise_variance", "covariance",
+              "report", "name"}
+
+
+@dataclass(frozen=True, eq=False)
 class PolyModel:
     """A(q) y(t) = B(q)/F(q) u(t) + C(q)/D(q) e(t), e white with variance ``noise_variance``.
 
@@ -110,25 +115,49 @@ class PolyModel:
     meta: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
-        for key in "ACDF":
-            p = np.atleast_1d(np.asarray(getattr(self, key), dtype=float))
-            if p.ndim != 1 or p.size == 0 or p[0] != 1.0:
-                raise ValueError(f"PolyModel: {key} must be a monic coefficient array [1, ...], got {p!r}")
+        for key in "ABCDF":
+            p = _coefficients(getattr(self, key), key)
+            if key != "B" and p[0] != 1.0:
+                raise ValueError(f"PolyModel: {key} must be a monic coefficient array [1, ...], got {p.tolist()}")
             object.__setattr__(self, key, p)
-        B = np.atleast_1d(np.asarray(self.B, dtype=float))
-        if B.ndim != 1:
-            raise ValueError(f"PolyModel: B must be a 1-D coefficient array, got shape {B.shape}")
-        if self.nk < 0 or B.size < self.nk or np.any(B[: self.nk] != 0):
-            raise ValueError(f"PolyModel: B must start with nk={self.nk} zeros, got {B!r}")
-        object.__setattr__(self, "B", B)
+        if not _is_int(self.nk) or self.nk < 0 or self.B.size < self.nk or np.any(self.B[: self.nk] != 0):
+            raise ValueError(f"PolyModel: B must start with nk={self.nk!r} zeros (nk an integer >= 0), "
+                             f"got B = {self.B.tolist()}")
         try:
-            get_structure(self.structure)
+            entry = get_structure(self.structure)
         except ValueError as exc:
             raise ValueError(f"PolyModel: {exc}") from None
-        if not (self.Ts > 0):
-            raise ValueError(f"PolyModel: Ts must be positive, got {self.Ts!r}")
+        for key, letter in (("na", "A"), ("nc", "C"), ("nd", "D"), ("nf", "F")):
+            if key not in entry.free and getattr(self, letter).size > 1:
+                raise ValueError(f"PolyModel: a {self.structure} model has no {letter} polynomial "
+                                 f"(orders {list(entry.orders)}), got {letter} = {getattr(self, letter).tolist()}")
+        if isinstance(self.Ts, (bool, np.bool_)) or not isinstance(self.Ts, (int, float, np.number)) \
+                or not math.isfinite(self.Ts) or self.Ts <= 0:
+            raise ValueError(f"PolyModel: Ts must be a positive number of seconds, got {self.Ts!r}")
+        if not math.isfinite(self.noise_variance) or self.noise_variance < 0:
+            raise ValueError(f"PolyModel: noise_variance must be finite and >= 0, got {self.noise_variance!r}")
         if self.covariance is not None:
-            object.__setattr__(self, "covariance", np.asarray(self.covariance, dtype=float))
+            cov = np.asarray(self.covariance, dtype=float)
+            p = self.n_params
+            if cov.shape != (p, p):
+                raise ValueError(f"PolyModel: covariance must be {p} x {p} (one row per parameter "
+                                 f"{self.parameter_names}), got shape {cov.shape}")
+            if np.any(np.isnan(cov)):
+                raise ValueError("PolyModel: covariance has NaN entries")
+            object.__setattr__(self, "covariance", cov)
+
+    def __eq__(self, other: object) -> bool:
+        """Same polynomials, delay, Ts, structure, noise variance, covariance, report and name."""
+        if not isinstance(other, PolyModel):
+            return NotImplemented
+        arrays = all(np.array_equal(getattr(self, k), getattr(other, k)) for k in "ABCDF")
+        same_cov = (self.covariance is None) == (other.covariance is None) and (
+            self.covariance is None or np.array_equal(self.covariance, other.covariance))
+        return arrays and same_cov and (self.nk, self.Ts, self.structure, self.noise_variance, self.report,
+                                        self.name) == (other.nk, other.Ts, other.structure, other.noise_variance,
+                                                       other.report, other.name)
+
+    __hash__ = None  # type: ignore[assignment]  (holds arrays)
 
     # ------------------------------------------------------------------ orders and parameters
     @property
@@ -342,21 +371,52 @@ class PolyModel:
 
     @classmethod
     def from_dict(cls, d: dict) -> "PolyModel":
+        """The model :meth:`to_dict` wrote; a dictionary that cannot be one is refused naming the key.
+
+        Beyond the checks of the constructor: every key is known and of the right type,
+        ``orders`` (if given) matches the polynomials, and C, D and F are stable (an
+        estimated model's always are: its predictor filters by them).
+        """
+        if not isinstance(d, dict):
+            raise ValueError(f"PolyModel.from_dict: expected a dict, got {type(d).__name__}")
+        unknown = sorted(set(d) - MODEL_KEYS)
+        missing = sorted({"A", "B", "C", "D", "F", "nk", "Ts"} - set(d))
+        if unknown or missing:
+            raise ValueError(f"PolyModel.from_dict: unknown key(s) {unknown}, missing key(s) {missing}; "
+                             f"expected {sorted(MODEL_KEYS)}")
         report = d.get("report")
-        return cls(
-            A=np.array(d["A"], dtype=float),
-            B=np.array(d["B"], dtype=float),
-            C=np.array(d["C"], dtype=float),
-            D=np.array(d["D"], dtype=float),
-            F=np.array(d["F"], dtype=float),
-            nk=int(d["nk"]),
-            Ts=float(d["Ts"]),
+        if report is not None:
+            fields = {f.name for f in dataclass_fields(FitReport)}
+            if not isinstance(report, dict) or set(report) != fields:
+                raise ValueError(f"PolyModel.from_dict: 'report' must be a dict with keys {sorted(fields)}")
+        for key in ("nk",):
+            if not _is_int(d[key]):
+                raise ValueError(f"PolyModel.from_dict: {key!r} must be an integer, got {d[key]!r}")
+        for key in ("Ts", "noise_variance"):
+            if key in d and (isinstance(d[key], bool) or not isinstance(d[key], (int, float))):
+                raise ValueError(f"PolyModel.from_dict: {key!r} must be a number, got {d[key]!r}")
+        if d.get("name") is not None and not isinstance(d["name"], str):
+            raise ValueError(f"PolyModel.from_dict: 'name' must be a string or null, got {d['name']!r}")
+        cov = d.get("covariance")
+        model = cls(
+            A=_coefficients(d["A"], "A"), B=_coefficients(d["B"], "B"), C=_coefficients(d["C"], "C"),
+            D=_coefficients(d["D"], "D"), F=_coefficients(d["F"], "F"),
+            nk=int(d["nk"]), Ts=float(d["Ts"]),
             structure=d.get("structure", "pem"),
             noise_variance=float(d.get("noise_variance", 1.0)),
-            covariance=None if d.get("covariance") is None else np.array(d["covariance"], dtype=float),
+            covariance=None if cov is None else _matrix(cov, "covariance"),
             report=None if report is None else FitReport(**report),
             name=d.get("name"),
         )
+        if "orders" in d and list(d["orders"]) != list(model.orders):
+            raise ValueError(f"PolyModel.from_dict: 'orders' {d['orders']} do not match the polynomials "
+                             f"({model.label})")
+        for letter in "CDF":
+            p = getattr(model, letter)
+            if p.size > 1 and not is_stable(p):
+                raise ValueError(f"PolyModel.from_dict: {letter} has a root outside the unit circle "
+                                 f"(|root| = {np.max(np.abs(np.roots(p))):.4g}); an estimated model's never does")
+        return model
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=1)
@@ -402,6 +462,32 @@ class PolyModel:
 
     def __repr__(self) -> str:
         return f"PolyModel({self.label}, Ts={self.Ts:g})"
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+
+
+def _coefficients(values, key: str) -> np.ndarray:
+    """A polynomial as a non-empty, finite 1-D float array, or a ValueError naming it."""
+    try:
+        if values is None or isinstance(values, (str, bytes)):
+            raise TypeError
+        p = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        raise ValueError(f"PolyModel: {key} must be a list of numbers, got {values!r}") from None
+    if p.ndim != 1 or p.size == 0:
+        raise ValueError(f"PolyModel: {key} must be a non-empty 1-D coefficient array, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"PolyModel: {key} has non-finite coefficients: {p.tolist()}")
+    return p
+
+
+def _matrix(values, key: str) -> np.ndarray:
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"PolyModel: {key} must be a matrix of numbers, got {values!r}") from None
 
 
 def _check_horizon(horizon) -> int | float:

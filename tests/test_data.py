@@ -43,6 +43,14 @@ def test_from_csv_round_trip_and_bad_cell(tmp_path):
         IOData.from_csv(bad, Ts=0.01)
     with pytest.raises(ValueError, match="pass Ts="):
         IOData.from_csv(path)
+    timed = tmp_path / "t.csv"
+    timed.write_text("u,y,Ts\n" + "\n".join(f"{i},{i},0.002" for i in range(30)))
+    assert IOData.from_csv(timed).Ts == 0.002
+    varying = tmp_path / "v.csv"
+    varying.write_text("u,y,Ts\n" + "\n".join(f"{i},{i},{0.001 * (1 + i % 2)}" for i in range(30)))
+    with pytest.raises(ValueError, match=r"v.csv: column 'Ts' must hold one constant sampling period, got 2 "
+                                         r"different values \(0.001, 0.002\)"):
+        IOData.from_csv(varying)
 
 
 @pytest.mark.parametrize(
@@ -53,6 +61,8 @@ def test_from_csv_round_trip_and_bad_cell(tmp_path):
         (np.ones(20), np.r_[np.inf, np.ones(19)], 1.0, "output y has 1 NaN/inf"),
         (np.ones(20), np.ones(20), 0.0, "Ts must be a positive number"),
         (np.ones(20), np.ones(20), -1e-3, "Ts must be a positive number"),
+        (np.ones(20), np.ones(20), True, "Ts must be a positive number of seconds, got True"),
+        (np.ones(20), np.ones(20), "1", "Ts must be a positive number of seconds, got '1'"),
         (np.ones(5), np.ones(5), 1.0, "too few"),
         (np.ones((20, 2)), np.ones(20), 1.0, "one channel"),
     ],

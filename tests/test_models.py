@@ -102,6 +102,51 @@ def test_bad_polynomials_and_horizons_are_refused():
         m.predict(simulate("arx", 100, 0), 0)
 
 
+def _good() -> dict:
+    return PolyModel(A=[1.0], B=[0, 0.3, 0.1], C=[1, 0.2], D=[1, -0.5], F=[1, -0.8], nk=1, Ts=0.01,
+                     structure="bj", noise_variance=0.5, covariance=np.eye(5), name="g").to_dict()
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"F": [1.0, float("nan")]}, "F has non-finite coefficients"),
+    ({"B": [0.0, float("inf"), 0.1]}, "B has non-finite coefficients"),
+    ({"C": None}, "C must be a list of numbers"),
+    ({"D": "abc"}, "D must be a list of numbers"),
+    ({"A": [1.0, 0.5]}, "a bj model has no A polynomial"),
+    ({"structure": "arma"}, "unknown structure 'arma'"),
+    ({"orders": [9, 1, 1, 1, 1]}, r"'orders' \[9, 1, 1, 1, 1\] do not match the polynomials \(bj\[2 1 1 1 1\]\)"),
+    ({"covariance": np.eye(3).tolist()}, r"covariance must be 5 x 5 .*got shape \(3, 3\)"),
+    ({"covariance": [[float("nan")] * 5] * 5}, "covariance has NaN"),
+    ({"nk": 1.5}, "'nk' must be an integer"),
+    ({"nk": True}, "'nk' must be an integer"),
+    ({"Ts": True}, "'Ts' must be a number"),
+    ({"Ts": -1.0}, "Ts must be a positive number"),
+    ({"noise_variance": float("inf")}, "noise_variance must be finite"),
+    ({"C": [1.0, 1.5]}, r"C has a root outside the unit circle \(\|root\| = 1.5\)"),
+    ({"F": [1.0, -1.2]}, r"F has a root outside the unit circle"),
+    ({"extra": 1}, r"unknown key\(s\) \['extra'\]"),
+    ({"report": {"loss": 1.0}}, "'report' must be a dict with keys"),
+])
+def test_from_dict_refuses_what_cannot_be_a_model_naming_the_key(change, message):
+    d = {**_good(), **change}
+    with pytest.raises(ValueError, match=message):
+        PolyModel.from_dict(d)
+    missing = _good()
+    del missing["B"]
+    with pytest.raises(ValueError, match=r"missing key\(s\) \['B'\]"):
+        PolyModel.from_dict(missing)
+
+
+def test_models_and_records_compare_by_value():
+    a, b = PolyModel.from_dict(_good()), PolyModel.from_dict(_good())
+    assert a == b and not (a != b)
+    assert a != PolyModel.from_dict({**_good(), "B": [0, 0.3, 0.2]})
+    assert a != PolyModel.from_dict({**_good(), "covariance": None})
+    data = simulate("arx", 100, 0)
+    assert data == IOData(data.u.copy(), data.y.copy(), data.Ts, name=data.name)
+    assert data != IOData(data.u, data.y + 1e-9, data.Ts, name=data.name)
+
+
 def test_unstable_predictor_is_refused_not_nan():
     m = PolyModel(A=[1, -0.5], B=[0, 1.0], C=[1, 1.5], D=[1], F=[1], nk=1, Ts=1.0, name="bad")
     data = simulate("arx", 500, 0)
