@@ -23,6 +23,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
+from matplotlib.ticker import LogLocator, MaxNLocator
 
 from .data import IOData
 from .models import PolyModel
@@ -38,7 +39,10 @@ MIN_WINDOW_SAMPLES = 50
 FLOOR_DB = 40.0  # a magnitude band whose lower bound reaches 0 is drawn down to 40 dB below the curve
 ZOOM_PAD = 0.3  # pole-zero zoom: half-width = (0.5 + ZOOM_PAD) × the poles' spread …
 MIN_ZOOM = 1e-3  # … but at least this
+CONTEXT_REACH = 3.0  # the context panel shows |z| up to this at most
 BAND_ALPHA = 0.2
+MINOR_SUBS = (2.0, 5.0)  # minor ticks of the Bode frequency axis
+N_TICKS = 5  # at most this many intervals on a linear axis: every tick is a Text to lay out
 MEASURED = {"color": "k", "linewidth": 1.4, "zorder": 3}  # measured output: black, thicker, on top
 
 
@@ -62,6 +66,7 @@ def plot_resid(result: ResidResult, ax: Sequence[Axes] | None = None) -> Figure:
         axis.set_title(title, fontsize="medium")
         axis.set_ylabel("correlation")
         axis.legend(loc="upper right", fontsize="small")
+    _few_ticks(ax_auto, ax_cross)
     ax_auto.set_xlabel("lag τ (samples)")
     ax_cross.set_xlabel("lag τ (samples; τ > 0: input leads residual)")
     return ax_auto.figure
@@ -105,6 +110,7 @@ def plot_compare(
         measured = axis.plot(t[keep], data.y[keep], **MEASURED)[0]
         axis.set_ylabel(f"y ({y_unit})")
         axis.set_xlabel("time (s)")
+    _few_ticks(ax_all, ax_zoom)
     ax_all.axvspan(t[zoom.start], t[zoom.stop - 1], color="0.85", zorder=0)
     ax_zoom.set_xlim(t[zoom.start], t[zoom.stop - 1])
     ax_all.set_xlim(t[0], t[-1])
@@ -123,10 +129,13 @@ def plot_pzmap(
 
     ``models``: a `PolyModel` or python-control system, or a sequence of them.  With
     ``level`` or ``sd`` every `PolyModel` with a covariance gets confidence regions
-    (:func:`maglev.uncertainty.root_regions`) around its poles and zeros.  The zoom is
-    a square around all models' poles (``ZOOM_PAD`` margin, at least ``MIN_ZOOM``
-    half-width), marked by a rectangle on the left panel; it shows the unit circle's
-    arc where it crosses the window.  ``ax``: a (context, zoom) pair or None.
+    (:func:`maglev.uncertainty.root_regions`): around its poles on both panels, around
+    its zeros on the left one only (an over-parameterised B has zeros whose regions span
+    the plane; they would hide the poles).  The zoom is a square around all models'
+    poles (``ZOOM_PAD`` margin, at least ``MIN_ZOOM`` half-width), marked by a rectangle
+    on the left panel; it shows the unit circle's arc where it crosses the window.  The
+    left panel reaches out to |z| = ``CONTEXT_REACH`` at most and says how many roots lie
+    beyond.  ``ax``: a (context, zoom) pair or None.
     """
     systems = _as_list(models, "plot_pzmap")
     bounds = level is not None or sd is not None
@@ -137,13 +146,15 @@ def plot_pzmap(
         poles, zeros = np.asarray(system.poles(), dtype=complex), np.asarray(system.zeros(), dtype=complex)
         pole_sets.append(poles)
         everything += [poles, zeros]
-        regions = []
-        if bounds and isinstance(system, PolyModel) and system.covariance is not None:
-            regions = [root_regions(system, kind, level, sd) for kind in ("poles", "zeros")]
+        regions = {}
+        if bounds and _has_covariance(system):
+            regions = {kind: root_regions(system, kind, level, sd) for kind in ("poles", "zeros")}
         for axis in (ax_all, ax_zoom):
             handle = axis.plot(poles.real, poles.imag, marker="x", markersize=8, **style)[0]
             axis.plot(zeros.real, zeros.imag, marker="o", markerfacecolor="none", **style)
-            for region in regions:
+            for kind, region in regions.items():
+                if kind == "zeros" and axis is ax_zoom:
+                    continue
                 for j in range(region.roots.size):
                     edge = region.outline(j)
                     axis.plot(edge.real, edge.imag, color=f"C{i}", linewidth=0.8)
@@ -153,18 +164,23 @@ def plot_pzmap(
     _unit_circle(ax_zoom, (centre, half))
     ax_zoom.set_xlim(centre.real - half, centre.real + half)
     ax_zoom.set_ylim(centre.imag - half, centre.imag + half)
-    reach = max([1.1, abs(centre.real) + half, abs(centre.imag) + half]
-                + [1.05 * float(np.max(np.abs(r))) for r in everything if r.size])
+    radii = np.abs(np.concatenate(everything))
+    radii = radii[np.isfinite(radii)]
+    reach = max(1.1, abs(centre.real) + half, abs(centre.imag) + half,
+                min(1.05 * float(radii.max(initial=0.0)), CONTEXT_REACH))
+    beyond = int(np.sum(radii > reach))
     ax_all.set_xlim(-reach, reach)
     ax_all.set_ylim(-reach, reach)
     ax_all.add_patch(Rectangle((centre.real - half, centre.imag - half), 2 * half, 2 * half,
                                fill=False, edgecolor="0.3", linewidth=0.8))
+    _few_ticks(ax_all, ax_zoom)
     for axis in (ax_all, ax_zoom):
         axis.set_aspect("equal", adjustable="box")
         axis.set_xlabel("real")
     ax_all.set_ylabel("imaginary")
     what = "" if not bounds else f", {_level_text(level, sd)} regions"
-    ax_all.set_title(f"Poles (x) and zeros (o) of G{what}", fontsize="medium")
+    off = f" ({beyond} beyond |z| = {reach:.3g})" if beyond else ""
+    ax_all.set_title(f"Poles (x) and zeros (o) of G{what}{off}", fontsize="medium")
     ax_zoom.set_title("zoom on the poles", fontsize="medium")
     ax_zoom.legend(handles, [_name(s, i) for i, s in enumerate(systems)], loc="upper left", fontsize="small")
     return ax_all.figure
@@ -229,6 +245,7 @@ def plot_bode(
     ax_mag.set_title(f"Bode diagram of G{what}", fontsize="medium")
     for axis in (ax_mag, ax_phase):
         axis.grid(True, which="major", linewidth=0.3)
+    ax_phase.xaxis.set_minor_locator(LogLocator(subs=MINOR_SUBS))  # few minor ticks: each costs a Text
     ax_mag.legend(loc="lower left", fontsize="small")
     return ax_mag.figure
 
@@ -268,6 +285,7 @@ def plot_step(
             t = np.arange(n) * dt
             y = system.simulate(np.ones(n)) if isinstance(system, PolyModel) else _control_step(system, t)
         axis.plot(t, y, drawstyle="steps-post", color=color, label=_name(system, i))
+    _few_ticks(axis)
     axis.set_xlabel("time (s)")
     axis.set_ylabel(f"y ({y_unit}) for a 1 {u_unit} step")
     what = "" if level is None and sd is None else f" with {_level_text(level, sd)} bounds"
@@ -308,6 +326,12 @@ def _axes_pair(ax: Sequence[Axes] | None, caller: str, size=(7.0, 6.0), rows: in
     if len(pair) != 2 or not all(isinstance(a, Axes) for a in pair):
         raise ValueError(f"{caller}: expected a pair of matplotlib Axes or None, got {ax!r}")
     return pair[0], pair[1]
+
+
+def _few_ticks(*axes: Axes) -> None:
+    for axis in axes:
+        axis.xaxis.set_major_locator(MaxNLocator(N_TICKS, steps=[1, 2, 5, 10]))
+        axis.yaxis.set_major_locator(MaxNLocator(N_TICKS, steps=[1, 2, 5, 10]))
 
 
 def _window(data: IOData, window: tuple[float, float] | None) -> slice:

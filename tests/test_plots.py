@@ -169,14 +169,23 @@ def test_plot_pzmap_draws_the_confidence_regions_of_poles_and_zeros():
     m = _estimated()
     fig = plot_pzmap(m, level=0.99)
     context, zoom = fig.axes
-    outlines = [ln for ln in zoom.get_lines() if ln.get_marker() in ("None", "", None) and ln.get_linestyle() == "-"]
-    expected = [r.outline(i) for r in (root_regions(m, "poles", 0.99), root_regions(m, "zeros", 0.99))
-                for i in range(r.roots.size)]
-    assert len(outlines) == len(expected) == 3
-    for line, edge in zip(outlines, expected):
-        np.testing.assert_allclose(line.get_xdata() + 1j * line.get_ydata(), edge)
+    poles, zeros = root_regions(m, "poles", 0.99), root_regions(m, "zeros", 0.99)
+    for axis, regions in ((context, (poles, zeros)), (zoom, (poles,))):  # zero regions on the context only
+        outlines = [ln for ln in axis.get_lines() if ln.get_marker() in ("None", "") and ln.get_linestyle() == "-"]
+        expected = [r.outline(i) for r in regions for i in range(r.roots.size)]
+        assert len(outlines) == len(expected)
+        for line, edge in zip(outlines, expected):
+            np.testing.assert_allclose(line.get_xdata() + 1j * line.get_ydata(), edge)
     assert "99 % regions" in context.get_title()
     assert len([ln for ln in plot_pzmap(m).axes[1].get_lines() if ln.get_linestyle() == "-"]) == 0
+
+
+def test_plot_pzmap_context_stops_at_three_and_says_what_it_leaves_out():
+    far = PolyModel(A=[1.0, -0.5], B=[0, 1.0, -9.0], C=ONE, D=ONE, F=ONE, nk=1, Ts=TS, structure="arx")
+    context, _ = plot_pzmap(far).axes
+    assert context.get_xlim() == pytest.approx((-3.0, 3.0))
+    assert context.get_title().endswith("(1 beyond |z| = 3)")
+    assert "beyond" not in plot_pzmap(_model(-1.5, "m")).axes[0].get_title()
 
 
 def test_plot_pzmap_accepts_a_single_control_system():
