@@ -6,9 +6,10 @@ headless and never opens a window) and returns the ``Figure``.  Models may be
 `PolyModel`s or python-control systems, so a true plant can be overlaid on estimates.
 
 Confidence bounds (``level`` or ``sd``, as in :mod:`maglev.uncertainty`, which computes
-them) are drawn for every `PolyModel` that carries a covariance: shaded bands on Bode
-and step plots, ellipses (complex roots) or segments (real roots) on pole-zero maps.
-With neither argument no bounds are drawn.
+them) are drawn for every `PolyModel` that carries a finite covariance: shaded bands on
+Bode and step plots, ellipses (complex roots) or segments (real roots) on pole-zero
+maps.  With neither argument no bounds are drawn; models without a (finite) covariance,
+such as python-control systems or estimates from singular data, are drawn without.
 
 Figures use a fixed layout (margins in inches) rather than constrained layout, and
 few text objects: at 150 dpi the layout engine and tick-label text dominate the cost
@@ -410,7 +411,10 @@ def _is_system(obj) -> bool:
 
 
 def _has_covariance(system) -> bool:
-    return isinstance(system, PolyModel) and system.covariance is not None
+    """A `PolyModel` whose bounds can be computed (an estimate from singular data carries an infinite covariance)."""
+    if not isinstance(system, PolyModel) or system.covariance is None:
+        return False
+    return bool(np.all(np.isfinite(system.covariance)))
 
 
 def _name(system, index: int, default: str | None = None) -> str:

@@ -236,6 +236,9 @@ def test_plot_bode_shades_the_confidence_band_of_each_estimated_model():
     np.testing.assert_allclose(mag.get_lines()[0].get_ydata(), 20 * np.log10(np.abs(m.freqresp(w))))
     assert mag.get_ylabel() == "|G| (dB re 1 cm/A)" and "99 % bounds" in mag.get_title()
     assert not plot_bode(m, w=w).axes[0].collections  # no level, no sd: no band
+    singular = PolyModel(A=m.A, B=m.B, C=ONE, D=ONE, F=ONE, nk=1, Ts=TS, structure="arx",
+                         covariance=np.full((4, 4), np.inf))  # as estimate() stores a singular problem's
+    assert not plot_bode(singular, w=w, level=0.99).axes[0].collections
 
 
 def test_plot_bode_draws_precomputed_bounds_on_their_own_frequencies():
