@@ -1,9 +1,19 @@
-"""The identification figures: residual correlations, compare, pole-zero map, Bode.
+"""The identification figures: residual correlations, compare, pole-zero map, Bode, step response.
 
 The study logs these figures to MLflow and the report embeds them, so each helper
 draws on axes it is given (or on a new ``Figure`` made without pyplot, which is safe
 headless and never opens a window) and returns the ``Figure``.  Models may be
 `PolyModel`s or python-control systems, so a true plant can be overlaid on estimates.
+
+Confidence bounds (``level`` or ``sd``, as in :mod:`maglev.uncertainty`, which computes
+them) are drawn for every `PolyModel` that carries a finite covariance: shaded bands on
+Bode and step plots, ellipses (complex roots) or segments (real roots) on pole-zero
+maps.  With neither argument no bounds are drawn; models without a (finite) covariance,
+such as python-control systems or estimates from singular data, are drawn without.
+
+Figures use a fixed layout (margins in inches) rather than constrained layout, and
+few text objects: at 150 dpi the layout engine and tick-label text dominate the cost
+of a figure, and a study run draws several per model.
 """
 
 from __future__ import annotations
@@ -13,13 +23,28 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+from matplotlib.ticker import LogLocator, MaxNLocator
 
 from .data import IOData
 from .models import PolyModel
+from .uncertainty import FrequencyBounds, frequency_bounds, root_regions, step_bounds, step_length
 from .validate import ResidResult
 
 N_FREQUENCIES = 500
 DECADES = 3  # default Bode range: 10^-3 … 1 times the Nyquist frequency
+U_UNIT = "A"  # coil current
+Y_UNIT = "cm"  # upper magnet height as the rig's calibrated sensor reports it
+COMPARE_WINDOW = 0.1  # default zoom of plot_compare: the middle 10 % of the record
+MIN_WINDOW_SAMPLES = 50
+FLOOR_DB = 40.0  # a magnitude band whose lower bound reaches 0 is drawn down to 40 dB below the curve
+ZOOM_PAD = 0.3  # pole-zero zoom: half-width = (0.5 + ZOOM_PAD) × the poles' spread …
+MIN_ZOOM = 1e-3  # … but at least this
+CONTEXT_REACH = 3.0  # the context panel shows |z| up to this at most
+BAND_ALPHA = 0.2
+MINOR_SUBS = (2.0, 5.0)  # minor ticks of the Bode frequency axis
+N_TICKS = 5  # at most this many intervals on a linear axis: every tick is a Text to lay out
+MEASURED = {"color": "k", "linewidth": 1.4, "zorder": 3}  # measured output: black, thicker, on top
 
 
 def plot_resid(result: ResidResult, ax: Sequence[Axes] | None = None) -> Figure:
@@ -42,6 +67,7 @@ def plot_resid(result: ResidResult, ax: Sequence[Axes] | None = None) -> Figure:
         axis.set_title(title, fontsize="medium")
         axis.set_ylabel("correlation")
         axis.legend(loc="upper right", fontsize="small")
+    _few_ticks(ax_auto, ax_cross)
     ax_auto.set_xlabel("lag τ (samples)")
     ax_cross.set_xlabel("lag τ (samples; τ > 0: input leads residual)")
     return ax_auto.figure
@@ -51,10 +77,19 @@ def plot_compare(
     data: IOData,
     yhat: np.ndarray | Sequence[np.ndarray],
     fit: float | Sequence[float],
-    ax: Axes | None = None,
+    ax: Sequence[Axes] | None = None,
     labels: Sequence[str] | None = None,
+    window: tuple[float, float] | None = None,
+    y_unit: str = Y_UNIT,
 ) -> Figure:
-    """Measured output and one or several predictions against time, FIT % in the legend."""
+    """Measured output and one or several predictions: the whole record, and a zoomed window below it.
+
+    ``yhat``/``fit`` are one prediction and its FIT % or sequences of them (as
+    :func:`maglev.validate.compare` returns for one or several models).  The measured
+    output is drawn last, black and thicker, so it stays visible; ``window`` = (t0, t1)
+    in seconds (default: the middle ``COMPARE_WINDOW`` of the record) is shaded on the
+    upper panel and shown in the lower one.  ``ax``: a (whole record, zoom) pair or None.
+    """
     if not isinstance(data, IOData):
         raise TypeError(f"plot_compare: data must be an IOData, got {type(data).__name__}")
     preds = [np.asarray(yhat, dtype=float)] if np.ndim(yhat) == 1 else [np.asarray(p, dtype=float) for p in yhat]
@@ -67,39 +102,89 @@ def plot_compare(
     for p in preds:
         if p.shape != data.y.shape:
             raise ValueError(f"plot_compare: a prediction has shape {p.shape}, expected {data.y.shape} like data.y")
-    axis = _axes(ax)
-    axis.plot(data.t, data.y, color="k", linewidth=1.0, label="measured")
-    for p, f, name in zip(preds, fits, names):
-        axis.plot(data.t, p, linewidth=1.0, label=f"{name}: FIT {f:.1f} %")
-    axis.set_xlabel("time (s)")
-    axis.set_ylabel("output y")
-    axis.legend(loc="best", fontsize="small")
-    return axis.figure
+    zoom = _window(data, window)
+    ax_all, ax_zoom = _axes_pair(ax, "plot_compare", size=(8.0, 6.0))
+    t = data.t
+    for axis, keep in ((ax_all, slice(None)), (ax_zoom, zoom)):
+        lines = [axis.plot(t[keep], p[keep], linewidth=1.0, color=f"C{i}", zorder=2)[0]
+                 for i, p in enumerate(preds)]
+        measured = axis.plot(t[keep], data.y[keep], **MEASURED)[0]
+        axis.set_ylabel(f"y ({y_unit})")
+        axis.set_xlabel("time (s)")
+    _few_ticks(ax_all, ax_zoom)
+    ax_all.axvspan(t[zoom.start], t[zoom.stop - 1], color="0.85", zorder=0)
+    ax_zoom.set_xlim(t[zoom.start], t[zoom.stop - 1])
+    ax_all.set_xlim(t[0], t[-1])
+    ax_all.legend([measured, *lines], ["measured", *(f"{n}: FIT {f:.1f} %" for n, f in zip(names, fits))],
+                  loc="upper right", fontsize="small")
+    return ax_all.figure
 
 
-def plot_pzmap(models, ax: Axes | None = None) -> Figure:
-    """Poles (x) and zeros (o) of G for one or several models, with the unit circle.
+def plot_pzmap(
+    models,
+    ax: Sequence[Axes] | None = None,
+    level: float | None = None,
+    sd: float | None = None,
+) -> Figure:
+    """Poles (x) and zeros (o) of G: the unit circle with everything (left) and a zoom on the poles (right).
 
-    ``models``: a `PolyModel` or python-control system, or a sequence of them.
+    ``models``: a `PolyModel` or python-control system, or a sequence of them.  With
+    ``level`` or ``sd`` every `PolyModel` with a covariance gets confidence regions
+    (:func:`maglev.uncertainty.root_regions`): around its poles on both panels, around
+    its zeros on the left one only (an over-parameterised B has zeros whose regions span
+    the plane; they would hide the poles).  The zoom is a square around all models'
+    poles (``ZOOM_PAD`` margin, at least ``MIN_ZOOM`` half-width), marked by a rectangle
+    on the left panel; it shows the unit circle's arc where it crosses the window.  The
+    left panel reaches out to |z| = ``CONTEXT_REACH`` at most and says how many roots lie
+    beyond.  ``ax``: a (context, zoom) pair or None.
     """
     systems = _as_list(models, "plot_pzmap")
-    axis = _axes(ax)
-    theta = np.linspace(0.0, 2.0 * np.pi, 400)
-    axis.plot(np.cos(theta), np.sin(theta), color="0.6", linewidth=0.8, linestyle="--")
+    bounds = level is not None or sd is not None
+    ax_all, ax_zoom = _axes_pair(ax, "plot_pzmap", size=(10.0, 5.0), rows=1)
+    pole_sets, everything, handles = [], [], []
     for i, system in enumerate(systems):
-        color = f"C{i}"
-        name = _name(system, i)
-        poles, zeros = np.asarray(system.poles()), np.asarray(system.zeros())
-        axis.plot(poles.real, poles.imag, "x", color=color, markersize=8, label=f"{name} poles")
-        axis.plot(zeros.real, zeros.imag, "o", color=color, markerfacecolor="none", label=f"{name} zeros")
-    axis.axhline(0.0, color="k", linewidth=0.5)
-    axis.axvline(0.0, color="k", linewidth=0.5)
-    axis.set_aspect("equal", adjustable="datalim")
-    axis.set_xlabel("real")
-    axis.set_ylabel("imaginary")
-    axis.set_title("Pole-zero map of G", fontsize="medium")
-    axis.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small")  # outside: keep z = 0 visible
-    return axis.figure
+        style = {"color": f"C{i}", "linestyle": "none"}
+        poles, zeros = np.asarray(system.poles(), dtype=complex), np.asarray(system.zeros(), dtype=complex)
+        pole_sets.append(poles)
+        everything += [poles, zeros]
+        regions = {}
+        if bounds and _has_covariance(system):
+            regions = {kind: root_regions(system, kind, level, sd) for kind in ("poles", "zeros")}
+        for axis in (ax_all, ax_zoom):
+            handle = axis.plot(poles.real, poles.imag, marker="x", markersize=8, **style)[0]
+            axis.plot(zeros.real, zeros.imag, marker="o", markerfacecolor="none", **style)
+            for kind, region in regions.items():
+                if kind == "zeros" and axis is ax_zoom:
+                    continue
+                for j in range(region.roots.size):
+                    edge = region.outline(j)
+                    axis.plot(edge.real, edge.imag, color=f"C{i}", linewidth=0.8)
+        handles.append(handle)
+    centre, half = _zoom_square(np.concatenate(pole_sets))
+    _unit_circle(ax_all, None)
+    _unit_circle(ax_zoom, (centre, half))
+    ax_zoom.set_xlim(centre.real - half, centre.real + half)
+    ax_zoom.set_ylim(centre.imag - half, centre.imag + half)
+    radii = np.abs(np.concatenate(everything))
+    radii = radii[np.isfinite(radii)]
+    reach = max(1.1, abs(centre.real) + half, abs(centre.imag) + half,
+                min(1.05 * float(radii.max(initial=0.0)), CONTEXT_REACH))
+    beyond = int(np.sum(radii > reach))
+    ax_all.set_xlim(-reach, reach)
+    ax_all.set_ylim(-reach, reach)
+    ax_all.add_patch(Rectangle((centre.real - half, centre.imag - half), 2 * half, 2 * half,
+                               fill=False, edgecolor="0.3", linewidth=0.8))
+    _few_ticks(ax_all, ax_zoom)
+    for axis in (ax_all, ax_zoom):
+        axis.set_aspect("equal", adjustable="box")
+        axis.set_xlabel("real")
+    ax_all.set_ylabel("imaginary")
+    what = "" if not bounds else f", {_level_text(level, sd)} regions"
+    off = f" ({beyond} beyond |z| = {reach:.3g})" if beyond else ""
+    ax_all.set_title(f"Poles (x) and zeros (o) of G{what}{off}", fontsize="medium")
+    ax_zoom.set_title("zoom on the poles", fontsize="medium")
+    ax_zoom.legend(handles, [_name(s, i) for i, s in enumerate(systems)], loc="upper left", fontsize="small")
+    return ax_all.figure
 
 
 def plot_bode(
@@ -107,17 +192,27 @@ def plot_bode(
     w: np.ndarray | None = None,
     true_system=None,
     axes: Sequence[Axes] | None = None,
+    level: float | None = None,
+    sd: float | None = None,
+    u_unit: str = U_UNIT,
+    y_unit: str = Y_UNIT,
 ) -> Figure:
-    """Bode diagram of G (magnitude in dB, phase in degrees, against ω in rad/s).
+    """Bode diagram of G (magnitude in dB re 1 ``y_unit``/``u_unit``, phase in degrees, against ω in rad/s).
 
-    ``models``: one or several `PolyModel`s or python-control systems; ``true_system``
-    (a python-control system) is drawn dashed in black.  ``w`` defaults to
-    ``N_FREQUENCIES`` log-spaced points over ``DECADES`` decades below the smallest
-    model's Nyquist frequency π/Ts.  ``axes`` is a (magnitude, phase) pair or None.
+    ``models``: one or several `PolyModel`s, python-control systems or precomputed
+    `FrequencyBounds` (drawn on their own frequencies with their own band, e.g. a
+    nonparametric estimate with its standard error); ``true_system`` (a python-control
+    system) is drawn dashed in black.  With ``level`` or ``sd`` each `PolyModel` with a
+    covariance gets a shaded band (:func:`maglev.uncertainty.frequency_bounds`).  ``w``
+    defaults to ``N_FREQUENCIES`` log-spaced points over ``DECADES`` decades below the
+    smallest model's Nyquist frequency π/Ts.  ``axes`` is a (magnitude, phase) pair or None.
     """
-    systems = _as_list(models, "plot_bode")
+    systems = _as_list(models, "plot_bode", FrequencyBounds)
+    curves = [(s, _name(s, i), {"color": f"C{i}"}) for i, s in enumerate(systems)]
+    if true_system is not None:
+        curves.append((true_system, _name(true_system, -1, "true system"), {"color": "k", "linestyle": "--"}))
     if w is None:
-        dts = [_sampling_period(s) for s in systems + ([true_system] if true_system is not None else [])]
+        dts = [_sampling_period(s) for s, _, _ in curves if not isinstance(s, FrequencyBounds)]
         dts = [dt for dt in dts if dt]
         if not dts:
             raise ValueError("plot_bode: no discrete-time model to take a frequency range from; pass w (rad/s)")
@@ -126,42 +221,181 @@ def plot_bode(
     w = np.asarray(w, dtype=float)
     if w.ndim != 1 or w.size == 0 or np.any(~np.isfinite(w)) or np.any(w <= 0):
         raise ValueError("plot_bode: w must be a non-empty 1-D array of positive frequencies in rad/s")
-    ax_mag, ax_phase = _axes_pair(axes, "plot_bode")
-    curves = [(s, _name(s, i), {"color": f"C{i}"}) for i, s in enumerate(systems)]
-    if true_system is not None:
-        curves.append((true_system, _name(true_system, -1, "true system"), {"color": "k", "linestyle": "--"}))
+    ax_mag, ax_phase = _axes_pair(axes, "plot_bode", sharex=True)
     for system, name, style in curves:
-        response = _frequency_response(system, w)
-        ax_mag.semilogx(w, 20.0 * np.log10(np.abs(response)), label=name, **style)
-        ax_phase.semilogx(w, np.degrees(np.unwrap(np.angle(response))), label=name, **style)
-    ax_mag.set_ylabel("magnitude (dB)")
+        band = system if isinstance(system, FrequencyBounds) else None
+        if band is None and (level is not None or sd is not None) and _has_covariance(system):
+            band = frequency_bounds(system, w, level, sd)
+        if band is not None:
+            x, response = band.w, band.response
+            mag_db = _db(band.magnitude)
+            floor = mag_db - FLOOR_DB
+            low = np.maximum(_db(band.magnitude_lower), floor)
+            ax_mag.fill_between(x, low, _db(band.magnitude_upper), color=style["color"], alpha=BAND_ALPHA,
+                                linewidth=0)
+            ax_phase.fill_between(x, band.phase_lower, band.phase_upper, color=style["color"], alpha=BAND_ALPHA,
+                                  linewidth=0)
+        else:
+            x, response = w, _frequency_response(system, w)
+        ax_mag.semilogx(x, _db(np.abs(response)), label=name, **style)
+        ax_phase.semilogx(x, np.degrees(np.unwrap(np.angle(response))), label=name, **style)
+    ax_mag.set_ylabel(f"|G| (dB re 1 {y_unit}/{u_unit})")
     ax_phase.set_ylabel("phase (deg)")
     ax_phase.set_xlabel("frequency ω (rad/s)")
-    ax_mag.set_title("Bode diagram of G", fontsize="medium")
+    what = "" if level is None and sd is None else f" with {_level_text(level, sd)} bounds"
+    ax_mag.set_title(f"Bode diagram of G{what}", fontsize="medium")
     for axis in (ax_mag, ax_phase):
-        axis.grid(True, which="both", linewidth=0.3)
-    ax_mag.legend(loc="best", fontsize="small")
+        axis.grid(True, which="major", linewidth=0.3)
+    ax_phase.xaxis.set_minor_locator(LogLocator(subs=MINOR_SUBS))  # few minor ticks: each costs a Text
+    ax_mag.legend(loc="lower left", fontsize="small")
     return ax_mag.figure
 
 
+def plot_step(
+    models,
+    n: int | None = None,
+    ax: Axes | None = None,
+    level: float | None = None,
+    sd: float | None = None,
+    u_unit: str = U_UNIT,
+    y_unit: str = Y_UNIT,
+) -> Figure:
+    """Response of G to a unit input step from rest, with shaded bounds for `PolyModel`s with a covariance.
+
+    ``models``: one or several `PolyModel`s or discrete-time python-control systems (all
+    with one sampling period).  ``n`` samples; default: the longest
+    :func:`maglev.uncertainty.step_length` of the `PolyModel`s (or 200 samples).
+    """
+    systems = _as_list(models, "plot_step")
+    dts = {_sampling_period(s) for s in systems}
+    if None in dts or len(dts) != 1:
+        raise ValueError("plot_step: all models must be discrete-time with one sampling period, "
+                         f"got {sorted(map(str, dts))}")
+    (dt,) = dts
+    if n is None:
+        lengths = [step_length(s) for s in systems if isinstance(s, PolyModel)]
+        n = max(lengths) if lengths else 200
+    axis = _axes(ax)
+    for i, system in enumerate(systems):
+        color = f"C{i}"
+        if (level is not None or sd is not None) and _has_covariance(system):
+            result = step_bounds(system, n, level, sd)
+            t, y = result.t, result.y
+            axis.fill_between(t, result.lower, result.upper, step="post", color=color, alpha=BAND_ALPHA, linewidth=0)
+        else:
+            t = np.arange(n) * dt
+            y = system.simulate(np.ones(n)) if isinstance(system, PolyModel) else _control_step(system, t)
+        axis.plot(t, y, drawstyle="steps-post", color=color, label=_name(system, i))
+    _few_ticks(axis)
+    axis.set_xlabel("time (s)")
+    axis.set_ylabel(f"y ({y_unit}) for a 1 {u_unit} step")
+    what = "" if level is None and sd is None else f" with {_level_text(level, sd)} bounds"
+    axis.set_title(f"Step response of G{what}", fontsize="medium")
+    axis.grid(True, linewidth=0.3)
+    axis.legend(loc="lower right", fontsize="small")
+    return axis.figure
+
+
 # ---------------------------------------------------------------------------- helpers
+MARGINS = {"left": 0.9, "right": 0.25, "bottom": 0.55, "top": 0.35, "gap": 0.75}  # inches
+
+
+def _figure(size: tuple[float, float], rows: int, cols: int, sharex: bool = False):
+    """A pyplot-free figure with a fixed grid of axes (margins in inches: no layout engine)."""
+    fig = Figure(figsize=size)
+    width, height = size
+    gap = MARGINS["gap"] / 2 if sharex else MARGINS["gap"]  # no tick labels between shared-x panels
+    fig.subplots_adjust(
+        left=MARGINS["left"] / width, right=1 - MARGINS["right"] / width,
+        bottom=MARGINS["bottom"] / height, top=1 - MARGINS["top"] / height,
+        hspace=gap * rows / max(height - MARGINS["bottom"] - MARGINS["top"] - gap * (rows - 1), 1e-3),
+        wspace=gap * cols / max(width - MARGINS["left"] - MARGINS["right"] - gap * (cols - 1), 1e-3),
+    )
+    return fig.subplots(rows, cols, sharex=sharex, squeeze=False).ravel()
+
+
 def _axes(ax: Axes | None) -> Axes:
-    return Figure(figsize=(7, 4.5), layout="constrained").add_subplot() if ax is None else ax
+    return _figure((7.0, 4.5), 1, 1)[0] if ax is None else ax
 
 
-def _axes_pair(ax: Sequence[Axes] | None, caller: str) -> tuple[Axes, Axes]:
+def _axes_pair(ax: Sequence[Axes] | None, caller: str, size=(7.0, 6.0), rows: int = 2,
+               sharex: bool = False) -> tuple[Axes, Axes]:
     if ax is None:
-        fig = Figure(figsize=(7, 6), layout="constrained")
-        return tuple(fig.subplots(2, 1))
+        first, second = _figure(size, rows, 3 - rows, sharex)
+        return first, second
     pair = list(ax)
     if len(pair) != 2 or not all(isinstance(a, Axes) for a in pair):
         raise ValueError(f"{caller}: expected a pair of matplotlib Axes or None, got {ax!r}")
     return pair[0], pair[1]
 
 
-def _as_list(models, caller: str) -> list:
-    systems = [models] if _is_system(models) else list(models) if isinstance(models, Sequence) else None
-    if not systems or not all(_is_system(s) for s in systems):
+def _few_ticks(*axes: Axes) -> None:
+    for axis in axes:
+        axis.xaxis.set_major_locator(MaxNLocator(N_TICKS, steps=[1, 2, 5, 10]))
+        axis.yaxis.set_major_locator(MaxNLocator(N_TICKS, steps=[1, 2, 5, 10]))
+
+
+def _window(data: IOData, window: tuple[float, float] | None) -> slice:
+    """Sample slice of the zoom window (seconds), default the middle ``COMPARE_WINDOW`` of the record."""
+    N = data.N
+    if window is None:
+        length = min(N, max(MIN_WINDOW_SAMPLES, int(round(COMPARE_WINDOW * N))))
+        start = (N - length) // 2
+        return slice(start, start + length)
+    try:
+        t0, t1 = (float(v) for v in window)
+    except (TypeError, ValueError):
+        raise ValueError(f"plot_compare: window must be a pair (t0, t1) in seconds, got {window!r}") from None
+    t = data.t
+    if not (t[0] <= t0 < t1 <= t[-1]):
+        raise ValueError(f"plot_compare: window {window!r} must satisfy {t[0]:g} <= t0 < t1 <= {t[-1]:g} s")
+    start, stop = int(np.searchsorted(t, t0)), int(np.searchsorted(t, t1, side="right"))
+    if stop - start < 2:
+        raise ValueError(f"plot_compare: window {window!r} holds fewer than 2 samples (Ts = {data.Ts:g} s)")
+    return slice(start, stop)
+
+
+def _zoom_square(poles: np.ndarray) -> tuple[complex, float]:
+    """Centre and half-width of a square around ``poles`` (the unit circle's centre if there are none)."""
+    poles = poles[np.isfinite(poles)]
+    if poles.size == 0:
+        return 0j, 1.1
+    lo = complex(poles.real.min(), poles.imag.min())
+    hi = complex(poles.real.max(), poles.imag.max())
+    centre = (lo + hi) / 2
+    spread = max(hi.real - lo.real, hi.imag - lo.imag)
+    return centre, max((0.5 + ZOOM_PAD) * spread, MIN_ZOOM)
+
+
+def _unit_circle(axis: Axes, window: tuple[complex, float] | None) -> None:
+    """The unit circle (dashed); within a zoom ``window`` only the arc that crosses it, finely sampled."""
+    start, stop = 0.0, 2 * np.pi
+    if window is not None:
+        centre, half = window
+        if abs(centre.real) > half or abs(centre.imag) > half:  # the window does not contain z = 0
+            corners = centre + half * np.array([1 + 1j, 1 - 1j, -1 + 1j, -1 - 1j])
+            offsets = np.angle(corners / centre)
+            start = float(np.angle(centre) + offsets.min())
+            stop = float(np.angle(centre) + offsets.max())
+    theta = np.linspace(start, stop, 400)
+    axis.plot(np.cos(theta), np.sin(theta), color="0.6", linewidth=0.8, linestyle="--")
+
+
+def _level_text(level: float | None, sd: float | None) -> str:
+    return f"{100 * level:g} %" if level is not None else f"{sd:g} SD"
+
+
+def _db(magnitude: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore"):
+        return 20.0 * np.log10(magnitude)
+
+
+def _as_list(models, caller: str, *extra: type) -> list:
+    def ok(obj) -> bool:
+        return isinstance(obj, extra) or _is_system(obj)
+
+    systems = [models] if ok(models) else list(models) if isinstance(models, Sequence) else None
+    if not systems or not all(ok(s) for s in systems):
         raise ValueError(
             f"{caller}: models must be a PolyModel or python-control system, or a non-empty sequence of them"
         )
@@ -174,6 +408,13 @@ def _is_system(obj) -> bool:
     import control as ct
 
     return isinstance(obj, ct.LTI)
+
+
+def _has_covariance(system) -> bool:
+    """A `PolyModel` whose bounds can be computed (an estimate from singular data carries an infinite covariance)."""
+    if not isinstance(system, PolyModel) or system.covariance is None:
+        return False
+    return bool(np.all(np.isfinite(system.covariance)))
 
 
 def _name(system, index: int, default: str | None = None) -> str:
@@ -194,3 +435,11 @@ def _frequency_response(system, w: np.ndarray) -> np.ndarray:
     if not system.issiso():
         raise ValueError(f"plot_bode: {system.name} is not single-input single-output")
     return np.asarray(ct.frequency_response(system, w).complex).reshape(-1)
+
+
+def _control_step(system, t: np.ndarray) -> np.ndarray:
+    import control as ct
+
+    if not system.issiso():
+        raise ValueError(f"plot_step: {system.name} is not single-input single-output")
+    return np.asarray(ct.step_response(system, T=t).outputs, dtype=float).reshape(-1)

@@ -26,19 +26,66 @@ __all__ = ["fit_percent", "compare", "resid", "ResidResult"]
 
 def compare(
     data: IOData,
-    model: PolyModel,
-    horizon: int | float = 1,
-    initial_condition: str = "estimate",
-) -> tuple[float, np.ndarray]:
-    """(FIT %, ŷ) of ``model``'s ``horizon``-step prediction of ``data`` (``math.inf``: simulation)."""
+    *models_and_options,
+    horizon: int | float | None = None,
+    initial_condition: str | None = None,
+) -> tuple[float, np.ndarray] | tuple[np.ndarray, np.ndarray]:
+    """FIT % and ``horizon``-step predictions of one or several models on ``data`` (MATLAB's ``compare``).
+
+    * ``compare(data, m)`` or ``compare(data, m, k)`` → ``(fit, yhat)``: a float and an
+      array like ``data.y`` (the single-model form, unchanged).
+    * ``compare(data, m1, m2, …)`` or ``compare(data, m1, m2, …, k)`` → ``(fits, yhats)``:
+      arrays of shape (n_models,) and (n_models, N), in the order given — as MATLAB's
+      ``compare(data, sys1, …, sysN, kstep)``, the horizon may trail the models.
+
+    ``horizon`` (default 1; ``math.inf`` simulates) and ``initial_condition`` (default
+    ``"estimate"``: each model's initial state fitted to the data by least squares, as
+    MATLAB does) may also be given by keyword; positionally they follow the models in
+    that order.
+    """
     if not isinstance(data, IOData):
         raise TypeError(f"compare: data must be an IOData, got {type(data).__name__}")
-    if not math.isclose(data.Ts, model.Ts, rel_tol=1e-9):
-        raise ValueError(
-            f"compare: data {data.name or ''} has Ts = {data.Ts:g} s but the model has Ts = {model.Ts:g} s"
+    models, horizon, initial_condition = _compare_arguments(models_and_options, horizon, initial_condition)
+    fits, yhats = [], []
+    for model in models:
+        if not math.isclose(data.Ts, model.Ts, rel_tol=1e-9):
+            raise ValueError(
+                f"compare: data {data.name or ''} has Ts = {data.Ts:g} s but {model.name or model.label} "
+                f"has Ts = {model.Ts:g} s"
+            )
+        yhat = model.predict(data, horizon, initial_condition)
+        fits.append(fit_percent(data.y, yhat))
+        yhats.append(yhat)
+    if len(models) == 1:
+        return fits[0], yhats[0]
+    return np.array(fits), np.vstack(yhats)
+
+
+def _compare_arguments(args: tuple, horizon, initial_condition) -> tuple[list[PolyModel], int | float, str]:
+    """Split ``compare``'s positional arguments into models, then an optional horizon and initial condition."""
+    models = []
+    for arg in args:
+        if not isinstance(arg, PolyModel):
+            break
+        models.append(arg)
+    rest = list(args[len(models):])
+    if not models:
+        first = type(args[0]).__name__ if args else "nothing"
+        raise TypeError(f"compare: expected one or more PolyModels after the data, got {first}")
+    if rest and isinstance(rest[0], (int, float, np.integer, np.floating)) and not isinstance(rest[0], bool):
+        if horizon is not None:
+            raise TypeError("compare: horizon given both positionally and by keyword")
+        horizon = rest.pop(0)
+    if rest and isinstance(rest[0], str):
+        if initial_condition is not None:
+            raise TypeError("compare: initial_condition given both positionally and by keyword")
+        initial_condition = rest.pop(0)
+    if rest:
+        raise TypeError(
+            f"compare: after the models expected at most a horizon and an initial condition, got {rest[0]!r} "
+            "(models must come first)"
         )
-    yhat = model.predict(data, horizon, initial_condition)
-    return fit_percent(data.y, yhat), yhat
+    return models, 1 if horizon is None else horizon, "estimate" if initial_condition is None else initial_condition
 
 
 # ---------------------------------------------------------------------------- residual analysis
