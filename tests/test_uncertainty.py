@@ -11,7 +11,7 @@ from scipy.stats import norm
 from maglev import estimate as E
 from maglev import uncertainty as U
 from maglev.models import PolyModel
-from maglev.structure import PolySpec
+from maglev.structures import PolySpec
 
 from .systems import TRUE, simulate, true_model
 
