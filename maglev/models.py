@@ -88,6 +88,7 @@ class FitReport:
         )
 
 
+CANCEL_TOL = 0.05  # |pole − zero| in the z-plane below which a pair counts as a near cancellation
 MODEL_KEYS = {"structure", "orders", "Ts", "nk", "A", "B", "C", "D", "F", "noise_variance", "covariance",
               "report", "name"}
 
@@ -236,12 +237,23 @@ class PolyModel:
         b = np.trim_zeros(self.B, "f")
         return np.roots(b) if b.size > 1 else np.array([], dtype=complex)
 
-    def noise_poles(self) -> np.ndarray:
-        den = polymul(self.A, self.D)
-        return np.roots(den) if den.size > 1 else np.array([], dtype=complex)
-
     def noise_zeros(self) -> np.ndarray:
-        return np.roots(self.C) if self.C.size > 1 else np.array([], dtype=complex)
+        """Zeros of H (roots of C)."""
+        return _roots(self.C)
+
+    def near_cancellations(self, tol: float = CANCEL_TOL) -> list[tuple[str, complex, complex, float]]:
+        """Pole-zero pairs closer than ``tol`` in the z-plane, in G (poles of A·F vs zeros of B) and
+        H (A·D vs C): ``(which, pole, zero, |p − z|)``, one entry per conjugate pair.  A cancellation
+        means an order higher than the data support."""
+        out = []
+        for which, zeros, poles in (("G", self.zeros(), self.poles()),
+                                    ("H", self.noise_zeros(), _roots(polymul(self.A, self.D)))):
+            for p in poles:
+                for z in zeros:
+                    d = abs(p - z)
+                    if d < tol and (p.imag >= 0 or z.imag >= 0):
+                        out.append((which, complex(p), complex(z), float(d)))
+        return out
 
     def dcgain(self) -> float:
         """Static gain G(1)."""
@@ -462,6 +474,12 @@ class PolyModel:
 
     def __repr__(self) -> str:
         return f"PolyModel({self.label}, Ts={self.Ts:g})"
+
+
+def _roots(p: np.ndarray) -> np.ndarray:
+    """Roots in z of a polynomial in q⁻¹ (leading zeros dropped; none for a constant)."""
+    p = np.trim_zeros(np.asarray(p, dtype=float), "f")
+    return np.roots(p) if p.size > 1 else np.array([], dtype=complex)
 
 
 def _is_int(x) -> bool:

@@ -21,7 +21,7 @@ from .data import IOData
 from .fit import fit_percent
 from .models import PolyModel
 
-__all__ = ["fit_percent", "compare", "resid", "ResidResult"]
+__all__ = ["fit_percent", "compare", "naive_fit", "resid", "ResidResult"]
 
 
 def compare(
@@ -59,6 +59,22 @@ def compare(
     if len(models) == 1:
         return fits[0], yhats[0]
     return np.array(fits), np.vstack(yhats)
+
+
+def naive_fit(data: IOData, horizon: int = 1) -> float:
+    """FIT % of the naive predictor ŷ(t) = y(t − k): the baseline every k-step FIT must beat.
+
+    At a short sampling period a slowly varying output is predicted well by its own
+    last sample, so a one-step FIT of 90 % can mean a model adds nothing.  The first k
+    samples have no past and are predicted by themselves (zero error), as an estimated
+    initial state would; the FIT is over all N samples like :func:`compare`'s.
+    """
+    if not isinstance(data, IOData):
+        raise TypeError(f"naive_fit: data must be an IOData, got {type(data).__name__}")
+    if isinstance(horizon, (bool, np.bool_)) or not isinstance(horizon, (int, np.integer)) or not 1 <= horizon < data.N:
+        raise ValueError(f"naive_fit: horizon must be an integer in [1, {data.N - 1}], got {horizon!r}")
+    y = data.y
+    return fit_percent(y, np.concatenate([y[:horizon], y[:-horizon]]))
 
 
 def _compare_arguments(args: tuple, horizon, initial_condition) -> tuple[list[PolyModel], int | float, str]:

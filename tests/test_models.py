@@ -156,3 +156,12 @@ def test_unstable_predictor_is_refused_not_nan():
     assert np.all(np.isfinite(unstable_g.predict(data, math.inf, "zero")))  # diverging but defined
     with pytest.raises(ValueError, match="simulation is unstable"):
         unstable_g.predict(data, math.inf, "estimate")
+
+
+def test_near_pole_zero_cancellations_are_flagged():
+    # G = (q^-2 - 0.5 q^-3) / (1 - 0.52 q^-1)(1 - 0.9 q^-1): zero 0.5 vs pole 0.52 cancel, 0.9 does not
+    F = np.convolve([1, -0.52], [1, -0.9])
+    m = PolyModel(A=[1.0], B=[0, 0, 1.0, -0.5], C=[1.0], D=[1.0], F=F, nk=2, Ts=0.01, structure="oe")
+    [(which, pole, zero, dist)] = m.near_cancellations(tol=0.05)
+    assert which == "G" and abs(pole - 0.52) < 1e-9 and abs(zero - 0.5) < 1e-9 and abs(dist - 0.02) < 1e-9
+    assert m.near_cancellations(tol=0.01) == []

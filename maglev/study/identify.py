@@ -20,7 +20,7 @@ from maglev.models import PolyModel
 from maglev.structures import get as structure
 from maglev.study.datasets import Prepared, load
 from maglev.threads import single_threaded_blas
-from maglev.validate import ResidResult, compare, resid
+from maglev.validate import ResidResult, compare, naive_fit, resid
 
 TIMING_METRICS = ("fit_seconds",)  # not reproducible; every other metric is
 
@@ -65,7 +65,8 @@ def identify(cfg: dict, figures: bool = True) -> RunOutput:
     rep = model.report
     poles = model.poles()
     metrics = {
-        "val_fit": val_fit, "val_fit_sim": val_fit_sim, "est_fit": rep.fit_percent,
+        "val_fit": val_fit, "val_fit_sim": val_fit_sim, "val_fit_naive": naive_fit(prep.val, horizon),
+        "est_fit": rep.fit_percent,
         "loss": rep.loss, "fpe": rep.fpe, "aic": rep.aic, "aicc": rep.aicc, "bic": rep.bic,
         "n_params": rep.n_params, "iterations": rep.iterations, "fit_seconds": fit_seconds,
         "whiteness_stat": rr.whiteness_stat, "whiteness_pvalue": rr.whiteness_pvalue,
@@ -74,6 +75,7 @@ def identify(cfg: dict, figures: bool = True) -> RunOutput:
         "independence_pass": float(rr.independent),
         "resid_auto_outside": rr.auto_outside, "resid_cross_outside": rr.cross_outside,
         "max_pole_radius": float(np.max(np.abs(poles))) if poles.size else 0.0,
+        "near_cancellations": len(model.near_cancellations()),
         "dcgain": model.dcgain(),
         "n_est": prep.est.N, "n_val": prep.val.N, "Ts": prep.data.Ts, "u0": prep.u0,
     }

@@ -13,20 +13,22 @@ the same data).  ``maglev rank`` and the end-of-sweep callback call it.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from maglev.study.cautions import Caution, cautions
 from maglev.study.store import Sweep, SweepError, artifact_json, dataset_configs, load_model, run_config
 from maglev.study.tracking import log_files
 from maglev.validate import ResidResult
 
 TOP = 4
-TABLE_COLUMNS = ["rank", "name", "structure", "orders", "dataset", "input_class", "val_fit", "n_params",
-                 "val_dataset", "val_fit_sim", "aic", "whiteness_pvalue", "independence_pvalue", "run_id"]
+TABLE_COLUMNS = ["rank", "name", "structure", "orders", "dataset", "input_class", "val_fit", "val_fit_naive",
+                 "val_fit_sim", "n_params", "val_dataset", "aic", "whiteness_pvalue", "independence_pvalue", "run_id"]
 
 
 # ---------------------------------------------------------------------------- ranking
@@ -40,7 +42,17 @@ def rank_table(runs: pd.DataFrame) -> pd.DataFrame:
                       kind="mergesort").reset_index(drop=True)
     t.insert(0, "rank", np.arange(1, len(t) + 1))
     t["n_params"] = t["n_params"].round().astype("Int64")
+    t["order"] = [model_order(o) for o in t["orders"]]
     return t[TABLE_COLUMNS + [c for c in t.columns if c not in TABLE_COLUMNS]]
+
+
+def model_order(orders: str) -> float:
+    """The largest polynomial order of a MATLAB order vector string (``"[3 3 3 3 2]"`` → 3; nk excluded)."""
+    try:
+        values = [int(v) for v in str(orders).strip("[]").split()][:-1]
+    except ValueError:
+        return math.nan
+    return float(max(values)) if values else math.nan
 
 
 def validation_note(table: pd.DataFrame) -> str | None:
@@ -112,6 +124,7 @@ class Ranking:
     configs: dict  # dataset name -> the logged config of one of its runs
     resids: dict  # run id -> ResidResult (best and worst)
     notes: list[str] = field(default_factory=list)
+    cautions: list[Caution] = field(default_factory=list)
     files: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -168,7 +181,8 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> 
     except (SweepError, OSError, ValueError) as exc:  # e.g. a record no longer where it was
         notes.append(f"datasets not rebuilt (no FIT on common validation data): {exc}")
     ranking = Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=cross,
-                      models=models, configs=configs, resids=resids, notes=notes)
+                      models=models, configs=configs, resids=resids, notes=notes,
+                      cautions=sweep_cautions(sweep, table, comp))
     named = {k: replace(models[r["run_id"]], name=f"{k}: {r['name']}") for k, r in (("best", best), ("worst", worst))}
     figs = best_worst_figures(named["best"], named["worst"], resids[best["run_id"]], resids[worst["run_id"]],
                               best["val_fit"], worst["val_fit"])
@@ -177,6 +191,15 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> 
         ranking.files["binary_vs_uniform/fit.png"] = png(comparison_figure(comp, cross, chosen))
     ranking.files.update(tables(ranking))
     return ranking
+
+
+def sweep_cautions(sweep: Sweep, table: pd.DataFrame, comparison: pd.DataFrame | None) -> list[Caution]:
+    """The cautions of the ranked table, with the sweep's working point and the compared datasets' mean inputs."""
+    lab = sweep.parent.data.metrics
+    compared = comparison if comparison is not None else table
+    u0 = compared.groupby("dataset")["u0"].first().dropna().to_dict() if "u0" in compared else {}
+    width = lab.get("lab.u_max", math.nan) - lab.get("lab.u_min", math.nan)
+    return cautions(table, u0, lab.get("lab.u_star"), width if math.isfinite(width) else None)
 
 
 # ---------------------------------------------------------------------------- tables
@@ -213,15 +236,18 @@ def tables(r: Ranking) -> dict[str, str]:
             md += "\nFIT % of each model on each validation set:\n\n" + markdown(
                 r.common.reset_index(names="model"))
         out["binary_vs_uniform/table.md"] = md
+    out["cautions/cautions.json"] = json.dumps([asdict(c) for c in r.cautions], indent=1, default=str)
+    out["cautions/cautions.md"] = "".join(f"- {c.text}\n" for c in r.cautions) or "No caution applies.\n"
     return out
 
 
 def top_text(r: Ranking) -> str:
     """The top four as plain text for the terminal."""
     lines = [f"Top {min(TOP, len(r.table))} of {len(r.table)} FINISHED runs of sweep {r.sweep.name!r} "
-             f"(parent {r.sweep.parent_id}), by one-step validation FIT:"]
+             f"(parent {r.sweep.parent_id}), by one-step validation FIT (naive y(t-1) and simulation FIT beside):"]
     for _, row in r.top.iterrows():
         lines.append(f"  {row['rank']}. {row['val_fit']:7.2f} %  {row['name']:<32s}  "
+                     f"naive {row['val_fit_naive']:6.2f} %  sim {row['val_fit_sim']:7.2f} %  "
                      f"n_params={int(row['n_params']) if not pd.isna(row['n_params']) else '?'}  "
                      f"val: {row['val_dataset']}")
     note = validation_note(r.top)
@@ -231,6 +257,9 @@ def top_text(r: Ranking) -> str:
                  f"({r.worst['val_fit']:.2f} %)")
     if r.sweep.ignored:
         lines.append("  ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(r.sweep.ignored.items())))
+    if r.cautions:
+        lines.append(f"Cautions ({len(r.cautions)}):")
+        lines += [f"  - {c.text}" for c in r.cautions]
     return "\n".join(lines)
 
 
@@ -244,7 +273,8 @@ def log_ranking(r: Ranking) -> str:
             "best_run": r.best["run_id"], "worst_run": r.worst["run_id"],
             "compared_structure": r.structure or "", "ranked_hash": r.ranked_hash, **tracking.process_tags()}
     run_id = client.create_run(r.sweep.experiment_id, run_name=f"ranking · {r.sweep.name}", tags=tags).info.run_id
-    metrics = {"n_ranked": len(r.table), "best_val_fit": r.best["val_fit"], "worst_val_fit": r.worst["val_fit"]}
+    metrics = {"n_ranked": len(r.table), "best_val_fit": r.best["val_fit"], "worst_val_fit": r.worst["val_fit"],
+               "n_cautions": len(r.cautions)}
     metrics.update({f"top{i + 1}_val_fit": v for i, v in enumerate(r.top["val_fit"])})
     metrics.update({f"ignored_{s.lower()}": n for s, n in r.sweep.ignored.items()})
     tracking.log_batch(client, run_id, metrics=metrics)

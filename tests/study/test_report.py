@@ -129,15 +129,3 @@ def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tm
     assert title, proc.stderr[-2000:]
     broken, total = map(int, re.fullmatch(r"broken=(\d+) total=(\d+)", title.group(1)).groups())
     assert broken == 0 and total == 9
-
-
-def test_near_pole_zero_cancellations_are_flagged():
-    from maglev.models import PolyModel
-    from maglev.study.report.sections import cancellations
-
-    # G = (q^-2 - 0.5 q^-3) / (1 - 0.52 q^-1)(1 - 0.9 q^-1): zero 0.5 vs pole 0.52 cancel, 0.9 does not
-    F = np.convolve([1, -0.52], [1, -0.9])
-    m = PolyModel(A=[1.0], B=[0, 0, 1.0, -0.5], C=[1.0], D=[1.0], F=F, nk=2, Ts=0.01, structure="oe")
-    [(which, pole, zero, dist)] = cancellations(m, tol=0.05)
-    assert which == "G" and abs(pole - 0.52) < 1e-9 and abs(zero - 0.5) < 1e-9 and abs(dist - 0.02) < 1e-9
-    assert cancellations(m, tol=0.01) == []

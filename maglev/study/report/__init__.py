@@ -31,7 +31,7 @@ padding:2px 6px;text-align:right} table.t th{background:#f2f2f2} figure{margin:.
 img{max-width:100%} .row{display:flex;flex-wrap:wrap;gap:1em} .row figure{flex:1 1 45%}
 figcaption{font-size:.85em;color:#555} .missing{color:#a00} nav a{margin-right:1em} .meta{color:#555;font-size:.9em}
 """
-SECTIONS = [("working-region", "Working region"), ("inputs", "Input signals"), ("data", "Data"),
+SECTIONS = [("cautions", "Cautions"), ("working-region", "Working region"), ("inputs", "Input signals"), ("data", "Data"),
             ("structures", "Structures and orders"), ("top4", "Top four"),
             ("binary-vs-uniform", "Binary vs uniform"), ("best-vs-worst", "Best vs worst")]
 
@@ -66,6 +66,7 @@ def build(ranking: Ranking, ranking_run: str) -> str:
             f"<code>{html.escape(ui_hint(sweep, ranking_run))}</code></p>"
             "<nav>" + "".join(f"<a href='#{a}'>{t}</a>" for a, t in SECTIONS) + "</nav>")
     body = [
+        sec.cautions(ranking.cautions),
         sec.working_region(lab, lab_png, ts_used),
         sec.input_signals(datasets, ranking.configs, lab, lab_png),
         sec.data_amounts(ranking.table, datasets, ranking.configs),

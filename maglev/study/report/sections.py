@@ -15,11 +15,11 @@ from collections.abc import Iterable
 import numpy as np
 import pandas as pd
 
+from maglev.models import CANCEL_TOL
 from maglev.structures import get as get_structure
 from maglev.study.figures import orders_figure, png
 from maglev.study.ranking import validation_note
 
-CANCEL_TOL = 0.05  # |pole - zero| below this (in the z-plane) flags a near pole-zero cancellation
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
 
 
@@ -63,30 +63,22 @@ def bullets(items: Iterable[str]) -> str:
 
 
 # ---------------------------------------------------------------------------- analysis helpers
-def cancellations(model, tol: float = CANCEL_TOL) -> list[tuple[str, complex, complex, float]]:
-    """Near pole-zero cancellations of G (poles of AF vs zeros of B) and H (AD vs C): (which, pole, zero, |p-z|)."""
-    from maglev.polynomials import polymul
-
-    def roots(p: np.ndarray) -> np.ndarray:
-        p = np.trim_zeros(np.asarray(p, dtype=float), "f")
-        return np.roots(p) if p.size > 1 else np.array([], dtype=complex)
-
-    out = []
-    for which, zeros, poles in (("G", model.zeros(), model.poles()),
-                                ("H", roots(model.C), roots(polymul(model.A, model.D)))):
-        for p in poles:
-            for z in zeros:
-                d = abs(p - z)
-                if d < tol and (p.imag >= 0 or z.imag >= 0):  # one entry per conjugate pair
-                    out.append((which, complex(p), complex(z), float(d)))
-    return out
-
-
 def cz(z: complex) -> str:
     return f"{z.real:.3f}{z.imag:+.3f}j" if abs(z.imag) > 1e-9 else f"{z.real:.3f}"
 
 
 # ---------------------------------------------------------------------------- sections
+def cautions(items: list) -> str:
+    """What the numbers below undermine (:mod:`maglev.study.cautions`), first, so nobody reads the ranking without it."""
+    if not items:
+        return section("cautions", "Cautions", para("No caution applies: the top model passes its residual tests, "
+                                                    "beats y(t−1) and simulates about as well as it predicts; no "
+                                                    "structure's best order is at the edge of the swept grid."))
+    return section("cautions", f"Cautions ({len(items)})",
+                   para("Each is computed from the runs' numbers; read the ranking with them in mind."),
+                   bullets(esc(c.text) for c in items))
+
+
 def working_region(lab: dict, lab_png: dict, ts_used: list[float]) -> str:
     if "lab.u_min" not in lab:
         return section("working-region", "1. Working region and sampling period",
@@ -181,7 +173,7 @@ def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> s
         runs = table_[table_["structure"] == st]
         rows, flagged = [], []
         for _, r in runs.sort_values(["dataset", "n_params"]).iterrows():
-            cancel = cancellations(models[r["run_id"]], tol)
+            cancel = models[r["run_id"]].near_cancellations(tol)
             rows.append({"dataset": r["dataset"], "orders": r["orders"], "n_params": r["n_params"],
                          "loss": r.get("loss"), "FPE": r.get("fpe"), "AIC": r.get("aic"), "val FIT %": r["val_fit"],
                          "near cancellations": len(cancel)})
@@ -190,7 +182,7 @@ def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> s
         by_order = runs.groupby("orders").agg(aic=("aic", "mean"), fit=("val_fit", "mean"),
                                               n=("n_params", "first"))
         best_aic, best_fit = by_order["aic"].idxmin(), by_order["fit"].idxmax()
-        n_cancel = {o: sum(len(cancellations(models[i], tol)) for i in runs.loc[runs["orders"] == o, "run_id"])
+        n_cancel = {o: sum(len(models[i].near_cancellations(tol)) for i in runs.loc[runs["orders"] == o, "run_id"])
                     for o in by_order.index}
         choice = (f"Orders tried: {', '.join(esc(o) for o in by_order.index)}. Mean AIC over the datasets is "
                   f"lowest for <b>{esc(best_aic)}</b> ({num(by_order.loc[best_aic, 'aic'])}) and mean validation "
@@ -215,13 +207,17 @@ def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> s
 
 
 def top_four(ranking) -> str:
-    cols = ["rank", "name", "structure", "orders", "dataset", "val_fit", "n_params", "val_dataset"]
+    cols = ["rank", "name", "structure", "orders", "dataset", "val_fit", "val_fit_naive", "val_fit_sim", "n_params",
+            "val_dataset"]
     note = validation_note(ranking.top)
     text = para(f"{len(ranking.table)} FINISHED models ranked by one-step-ahead FIT on validation data "
                 "(ties to fewer parameters)"
                 + (", ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(ranking.sweep.ignored.items()))
-                   if ranking.sweep.ignored else "") + ".")
-    lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])}, "
+                   if ranking.sweep.ignored else "") + ". Beside each: the naive predictor ŷ(t) = y(t−1) on the "
+                "same data (val_fit_naive; a model must beat it to add anything) and the simulation FIT "
+                "(val_fit_sim; how well G alone reproduces the output).")
+    lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])} "
+             f"(y(t−1): {num(r['val_fit_naive'])} %, simulation: {num(r['val_fit_sim'])} %), "
              f"{r['n_params']} parameters" for _, r in ranking.top.iterrows()]
     return section("top4", "5. Top four models", text, bullets(lines),
                    para(f"<b>Note:</b> the top four were {esc(note)}.") if note else "",
@@ -263,6 +259,20 @@ def binary_vs_uniform(ranking) -> str:
     return section("binary-vs-uniform", f"6. Binary vs uniform input ({st})", *parts)
 
 
+def test_comparison(test: str, best_passes: bool, worst_passes: bool, p_best: float, p_worst: float,
+                    failing_means: str) -> str:
+    """One sentence comparing the best and worst model on one residual test, from the two outcomes."""
+    ps = f"p = {num(p_best, 3)} for the best, {num(p_worst, 3)} for the worst"
+    if best_passes and worst_passes:
+        return f"Both pass the {test} test ({ps})."
+    if not best_passes and not worst_passes:
+        return f"Both fail the {test} test ({ps}): {failing_means}, in both."
+    if best_passes:
+        return f"Only the best passes the {test} test ({ps}); the worst has {failing_means}."
+    return (f"The worst passes the {test} test and the best fails it ({ps}): the best has {failing_means}, so "
+            "its higher one-step FIT does not make it the better model on this test.")
+
+
 def best_vs_worst(ranking, models_all: dict, tol: float = CANCEL_TOL) -> str:
     b, w = ranking.best, ranking.worst
     rb, rw = ranking.resids[b["run_id"]], ranking.resids[w["run_id"]]
@@ -270,10 +280,10 @@ def best_vs_worst(ranking, models_all: dict, tol: float = CANCEL_TOL) -> str:
             ("n_params", "parameters"), ("whiteness_pvalue", "whiteness p-value"),
             ("independence_pvalue", "independence p-value"), ("resid_auto_outside", "autocorr. lags outside 99 %"),
             ("resid_cross_outside", "cross-corr. lags outside 99 %"), ("max_pole_radius", "largest |pole|"),
-            ("dcgain", "static gain"), ("g_h2_rel_err", "‖G − G₀‖ / ‖G₀‖ (simulator)")]
+            ("dcgain", "static gain"), ("g_h2_rel_err", "‖G − G_lin‖ / ‖G_lin‖ (small-signal Jacobian)")]
     rows = [{"quantity": label, "best": num(b.get(k), 3), "worst": num(w.get(k), 3)} for k, label in keys
             if k in b.index]
-    cb, cw = cancellations(models_all[b["run_id"]], tol), cancellations(models_all[w["run_id"]], tol)
+    cb, cw = models_all[b["run_id"]].near_cancellations(tol), models_all[w["run_id"]].near_cancellations(tol)
     rows.append({"quantity": f"near cancellations (|p−z| < {tol})", "best": len(cb), "worst": len(cw)})
     findings = [f"Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on {esc(b['val_dataset'])}); "
                 f"worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT {num(w['val_fit'])} % on "
@@ -284,12 +294,11 @@ def best_vs_worst(ranking, models_all: dict, tol: float = CANCEL_TOL) -> str:
             f"{num(100 * res.auto_outside, 0)} % of autocorrelation lags outside the band), "
             f"{'independent of' if res.independent else 'correlated with'} the input "
             f"(p = {num(res.independence_pvalue, 3)}, {num(100 * res.cross_outside, 0)} % of lags outside).")
-    if rw.auto_outside > rb.auto_outside:
-        findings.append("The worst model leaves more structure in its residuals: its noise model (or its "
-                        "dynamics) misses part of the output that the best model predicts.")
-    if rw.cross_outside > rb.cross_outside:
-        findings.append("Its residuals also correlate more with the input: a sign that its G misses dynamics "
-                        "(or the delay), visible in the Bode plot as a different gain or phase.")
+    findings += [test_comparison("whiteness", rb.white, rw.white, rb.whiteness_pvalue, rw.whiteness_pvalue,
+                                 "residuals correlated in time: the noise model misses structure in the output"),
+                 test_comparison("independence", rb.independent, rw.independent, rb.independence_pvalue,
+                                 rw.independence_pvalue, "residuals correlated with the input: G misses dynamics "
+                                 "or the delay")]
     findings.append(f"Largest pole radius: best {num(b.get('max_pole_radius'), 3)}, worst "
                     f"{num(w.get('max_pole_radius'), 3)}; static gain best {num(b.get('dcgain'), 3)}, worst "
                     f"{num(w.get('dcgain'), 3)}.")

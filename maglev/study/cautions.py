@@ -1,0 +1,187 @@
+"""Cautions drawn from a ranked sweep's numbers: where the ranking's conclusion does not hold.
+
+A top-four table by one-step FIT reads like a verdict; these checks say when the
+numbers beside it undermine it — the top model fails its residual tests, predicts no
+better than y(t−1), simulates far worse than it predicts, lies far from the best
+linear approximation; a structure's best order sits at the edge of the swept grid;
+the compared datasets sit at different working points; a model is unstable or has
+near pole-zero cancellations.  Each caution is generated from the numbers it states
+and appears exactly when its condition holds; the ranking run, the report and the
+console print the same list.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+TEST_LEVEL = 0.01  # residual tests at the 1 % level (maglev.validate)
+NAIVE_MARGIN = 1.0  # FIT points a model must gain over y(t−1) to count as adding something
+SIM_GAP = 20.0  # FIT points between one-step and simulation FIT that flag a poor input-output model
+WORKING_POINT_SHARE = 0.10  # mean input this far (as a share of the working region's width) from u* differs
+BLA_RATIO = 2.0  # top model this many times farther from the BLA than the closest model of its dataset
+
+
+@dataclass(frozen=True)
+class Caution:
+    """One caution: a key naming the check, the sentence, and the numbers it states."""
+
+    key: str
+    text: str
+    numbers: dict = field(default_factory=dict)
+
+
+def _p(x: float) -> str:
+    return f"{x:.2g}"
+
+
+def _names(rows: pd.DataFrame, limit: int = 4) -> str:
+    names = list(rows["name"])
+    return ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
+def residual_tests(table: pd.DataFrame) -> list[Caution]:
+    """The top model failing whiteness or independence, and how many ranked runs fail each test."""
+    out = []
+    top = table.iloc[0]
+    for metric, test, what in (("whiteness_pvalue", "whiteness", "its residuals are correlated in time: the "
+                                "noise model misses structure"),
+                               ("independence_pvalue", "independence", "its residuals correlate with the input: "
+                                "G misses dynamics or the delay")):
+        if metric not in table:
+            continue
+        failing = table[table[metric] < TEST_LEVEL]
+        if top[metric] < TEST_LEVEL:
+            out.append(Caution(f"top_fails_{test}",
+                               f"The #1 model {top['name']} fails the {test} test (p = {_p(top[metric])} < "
+                               f"{TEST_LEVEL}): {what}.", {"p": float(top[metric])}))
+        if len(failing):
+            out.append(Caution(f"runs_fail_{test}",
+                               f"{len(failing)} of {len(table)} ranked models fail the {test} test at the "
+                               f"{TEST_LEVEL:.0%} level.", {"failing": len(failing), "ranked": len(table)}))
+    return out
+
+
+def naive_baseline(table: pd.DataFrame) -> list[Caution]:
+    """Models whose one-step FIT is no better than the naive predictor y(t−1) on the same data."""
+    if "val_fit_naive" not in table:
+        return []
+    gain = table["val_fit"] - table["val_fit_naive"]
+    out = []
+    top = table.iloc[0]
+    if gain.iloc[0] < NAIVE_MARGIN:
+        out.append(Caution("top_no_better_than_naive",
+                           f"The #1 model {top['name']} predicts one step ahead with FIT {top['val_fit']:.2f} %, "
+                           f"but y(t−1) alone scores {top['val_fit_naive']:.2f} % on the same data: it adds "
+                           f"{gain.iloc[0]:+.2f} points to the naive predictor.",
+                           {"val_fit": float(top["val_fit"]), "val_fit_naive": float(top["val_fit_naive"])}))
+    weak = table[gain < NAIVE_MARGIN]
+    if len(weak):
+        out.append(Caution("runs_no_better_than_naive",
+                           f"{len(weak)} of {len(table)} ranked models gain less than {NAIVE_MARGIN:g} FIT point "
+                           f"over y(t−1): {_names(weak)}.", {"weak": len(weak), "ranked": len(table)}))
+    return out
+
+
+def simulation_gap(table: pd.DataFrame) -> list[Caution]:
+    """The top model simulating the validation data far worse than it predicts them one step ahead."""
+    if "val_fit_sim" not in table:
+        return []
+    top = table.iloc[0]
+    gap = top["val_fit"] - top["val_fit_sim"]
+    if not gap > SIM_GAP:
+        return []
+    return [Caution("top_simulates_poorly",
+                    f"The #1 model {top['name']} simulates the validation data at FIT {top['val_fit_sim']:.2f} % "
+                    f"against {top['val_fit']:.2f} % one step ahead ({gap:.1f} points lower): its one-step FIT "
+                    "comes from the noise model's use of past outputs, not from G.",
+                    {"val_fit": float(top["val_fit"]), "val_fit_sim": float(top["val_fit_sim"])})]
+
+
+def bla_distance(table: pd.DataFrame) -> list[Caution]:
+    """The top model far from the best linear approximation, compared with its dataset's closest model."""
+    if "g_bla_err" not in table or table["g_bla_err"].isna().all():
+        return []
+    top = table.iloc[0]
+    same = table[table["dataset"] == top["dataset"]].dropna(subset=["g_bla_err"])
+    if math.isnan(top["g_bla_err"]) or same.empty:
+        return []
+    closest = same.loc[same["g_bla_err"].idxmin()]
+    if not top["g_bla_err"] > BLA_RATIO * closest["g_bla_err"]:
+        return []
+    return [Caution("top_far_from_bla",
+                    f"The #1 model {top['name']} is {top['g_bla_err']:.3g} (relative, input-spectrum weighted) from "
+                    f"the best linear approximation of {top['dataset']}; {closest['name']} is "
+                    f"{closest['g_bla_err']:.3g}: the better-predicting model is the worse model of the plant.",
+                    {"top": float(top["g_bla_err"]), "closest": float(closest["g_bla_err"]),
+                     "closest_run": closest["name"]})]
+
+
+def order_edges(table: pd.DataFrame) -> list[Caution]:
+    """A structure whose best order by mean AIC over the datasets sits at the edge of the swept orders."""
+    if "aic" not in table or "order" not in table:
+        return []
+    out = []
+    for st, runs in table.groupby("structure", sort=False):
+        orders = runs.groupby("order")["aic"].mean().dropna()
+        if len(orders) < 2:
+            continue
+        best = int(orders.idxmin())
+        grid = sorted(int(o) for o in orders.index)
+        if best == grid[-1]:
+            suggest = best + 1
+        elif best == grid[0] and best > 1:
+            suggest = best - 1
+        else:
+            continue
+        out.append(Caution(f"order_at_edge_{st}",
+                           f"{st}: the lowest mean AIC is at order {best}, the {'highest' if best == grid[-1] else 'lowest'}"
+                           f" of the swept orders {grid}: add order {suggest} (structure.order) before concluding.",
+                           {"best": best, "grid": grid, "suggest": suggest}))
+    return out
+
+
+def working_points(datasets: dict[str, float], u_star: float | None, width: float | None) -> list[Caution]:
+    """Compared datasets whose mean input lies away from the working point (``datasets``: name → mean u in A)."""
+    if u_star is None or width is None or not width > 0 or math.isnan(u_star):
+        return []
+    off = {n: u0 for n, u0 in datasets.items() if abs(u0 - u_star) > WORKING_POINT_SHARE * width}
+    if not off:
+        return []
+    where = ", ".join(f"{n} is centred at {u0:.2f} A" for n, u0 in off.items())
+    return [Caution("working_points_differ",
+                    f"{where}; the working point is {u_star:.2f} A: models of a nonlinear plant from inputs at "
+                    "different working points are linearisations at different points, so their comparison mixes "
+                    "the input class with the operating point.", {"u0": off, "u_star": u_star})]
+
+
+def model_health(table: pd.DataFrame, top: int = 4) -> list[Caution]:
+    """Unstable models among the ranked, near pole-zero cancellations among the top four."""
+    out = []
+    if "max_pole_radius" in table:
+        unstable = table[table["max_pole_radius"] >= 1.0]
+        if len(unstable):
+            out.append(Caution("unstable_models",
+                               f"{len(unstable)} ranked model(s) have a pole on or outside the unit circle: "
+                               f"{_names(unstable)} (largest |pole| {unstable['max_pole_radius'].max():.4f}).",
+                               {"unstable": len(unstable)}))
+    if "near_cancellations" in table:
+        flagged = table.head(top)[table.head(top)["near_cancellations"] > 0]
+        if len(flagged):
+            out.append(Caution("top_cancellations",
+                               f"Near pole-zero cancellations in the top four: " + ", ".join(
+                                   f"{r['name']} ({int(r['near_cancellations'])})" for _, r in flagged.iterrows())
+                               + ": their orders are higher than the data support.",
+                               {"flagged": list(flagged["name"])}))
+    return out
+
+
+def cautions(table: pd.DataFrame, datasets_u0: dict[str, float] | None = None, u_star: float | None = None,
+             width: float | None = None) -> list[Caution]:
+    """Every caution that applies to the ranked ``table`` (best first), in reading order."""
+    if table.empty:
+        return []
+    return (residual_tests(table) + naive_baseline(table) + simulation_gap(table) + bla_distance(table)
+            + order_edges(table) + working_points(datasets_u0 or {}, u_star, width) + model_health(table))
