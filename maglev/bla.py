@@ -287,7 +287,10 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
     if est is None:
         est = _estimate(spec, _system_of(plant, spec.Ts), preprocess, realisations, segment_s)
         if path is not None:
-            _save(path, est)
+            try:
+                _save(path, est)
+            except OSError:  # an unwritable cache directory only costs the next run the estimate
+                pass
     if cache is not False:
         _MEMORY[key] = est
     return replace(est, spec=spec)
