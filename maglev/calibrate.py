@@ -17,8 +17,12 @@ order) and prints the simulated-vs-real comparison of :mod:`maglev.sim_vs_real`:
    Nelder-Mead on the log-parameters against the checks the calibration must pass
    (``friction_errors``): ωn and ζ of the modes identified from binary_signal_1..4 and
    white_noise_4 within 20 % (same settings for real and simulated records) and the
-   staircase's rise time within 25 %, with the output stds of seven records and the
-   static curve held within their tolerances.
+   staircase's rise time within 25 %, with the static curve held within its tolerance;
+   and issue 15's checks: ARMAX [4 4 4 1] modes of binary_signal_2 (15 % / 30 %), output
+   stds of seven records within [0.8, 1.25] of the real ones, the α .25 / white-noise
+   std ratio within 25 %, and the frequency response within 3 dB where coherent.
+   Not run by default (``--friction-evals``): the defaults meet the first group but
+   not issue 15's, and a polish trades one for the other (docs/simulator.md).
 
 The real data are read in place (:mod:`maglev.refdata`), never copied.
 """
@@ -34,13 +38,17 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize, signal
 
+from maglev import bla
 from maglev.data import IOData
 from maglev.plant import Levitator, LevitatorParams
 from maglev.refdata import load_record, refdata_dir
-from maglev.sim_vs_real import (MODE_TOLERANCE, POLE_RECORDS, RISE_TOLERANCE, STAIR_LEVELS, STAIR_TAIL,
-                                STATIC_NOISE_MULTIPLE, STD_RECORDS, TRANSIENT_FRACTION, WHITE_RECORD, Mode,
-                                compare, dominant_mode_of, fourth_order_modes_of, least_damped, noise_psd,
-                                output_std, quantisation_step, stair_averages, stair_step)
+from maglev.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
+                                FRF_PREPROCESS, FRF_SEGMENT_S, FRF_TOLERANCE_DB, MODE_TOLERANCE, POLE_RECORDS,
+                                RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS, STAIR_TAIL, STATIC_NOISE_MULTIPLE,
+                                STD_RECORDS, STD_TOLERANCE, TRANSIENT_FRACTION, WHITE_RECORD, Comparison, Mode,
+                                armax_errors, armax_modes_of, compare, dominant_mode_of, fourth_order_modes_of,
+                                least_damped, noise_psd, output_std, quantisation_step, stair_averages, stair_step,
+                                two_modes)
 
 __all__ = ["fit_static", "fit_noise", "fit_dynamics", "fit_friction", "friction_targets", "friction_errors",
            "friction_cost", "main"]
@@ -140,6 +148,12 @@ class FrictionTargets:
     y_bar: np.ndarray  # staircase stationary averages
     static_tolerance: float  # cm, STATIC_NOISE_MULTIPLE x the sensor noise std at constant 3 A
     rise: float  # samples
+    armax: tuple[Mode | None, Mode | None] = (None, None)  # ARMAX [4 4 4 1] modes of ARMAX_RECORD
+    frf: dict[str, bla.FrequencyResponse] | None = None  # FRF_RECORDS -> the real record's Welch estimate
+
+
+FRF_RECORDS = ("binary_signal_2", WHITE_RECORD)  # the frequency responses the fit scores (issue 15)
+MISSING_MODE_ERROR = 3.0  # tolerance-scaled error of an ARMAX mode the simulated record does not show
 
 
 def friction_targets(root: Path | None = None) -> FrictionTargets:
@@ -154,7 +168,15 @@ def friction_targets(root: Path | None = None) -> FrictionTargets:
         modes={r: dominant_mode_of(inputs[r]) for r in POLE_RECORDS},
         second_mode=least_damped(fourth_order_modes_of(inputs[WHITE_RECORD])),
         stair=stair, y_bar=stair_averages(stair)[1], static_tolerance=STATIC_NOISE_MULTIPLE * noise_std,
-        rise=rise)
+        rise=rise, armax=two_modes(armax_modes_of(inputs[ARMAX_RECORD])),
+        frf={r: _frf(inputs[r]) for r in FRF_RECORDS})
+
+
+def _frf(data: IOData) -> bla.FrequencyResponse:
+    return bla.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
+
+
+LEGACY_CHECKS = ("wn", "zeta", "rise time")  # key endings of the checks the defaults meet (issue 3)
 
 
 STD_FIT_FACTOR = 1.8  # output stds are penalised outside this factor of the real ones (checked: 2)
@@ -167,8 +189,14 @@ def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple
 
     Errors (1.0 = at the tolerance): ωn and ζ of the dominant OE(2,2,3) mode of each
     binary record and of white_noise_4's second mode (``MODE_TOLERANCE``), and the
-    staircase's rise time (``RISE_TOLERANCE``).  Penalties (0 when met): every output
-    std within ``STD_FIT_FACTOR`` of the real one and the static rms below
+    staircase's rise time (``RISE_TOLERANCE``); issue 15's: ``armax slow/fast wn/zeta``
+    (ARMAX [4 4 4 1] of ``ARMAX_RECORD``, a mode the simulation lacks counts
+    ``MISSING_MODE_ERROR``), ``std <record>`` (|log ratio| / log ``STD_TOLERANCE``),
+    ``std ratio`` (α .25 / white noise) and ``frf <record>`` (largest |dB| difference
+    where the real coherence >= ``FRF_COHERENCE``, over ``FRF_TOLERANCE_DB``; the
+    simulated estimate is the replayed record's, one realisation of the class, where
+    ``maglev.sim_vs_real`` prints the BLA over several).  Penalties (0 when met): every
+    output std within ``STD_FIT_FACTOR`` of the real one and the static rms below
     ``STATIC_FIT_SHARE`` of its tolerance; a mode that cannot be identified costs 10.
     """
     errors: dict[str, float] = {}
@@ -182,9 +210,11 @@ def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple
         errors[f"{name} wn"] = abs(sim[0] / real[0] - 1) / MODE_TOLERANCE
         errors[f"{name} zeta"] = abs(sim[1] / real[1] - 1) / MODE_TOLERANCE
 
+    sims = {}
     for rec, real in tg.inputs.items():
-        sim = lev.simulate(real.u, Ts=real.Ts, seed=seed)
+        sim = sims[rec] = lev.simulate(real.u, Ts=real.Ts, seed=seed)
         ratio = max(output_std(sim), 1e-6) / tg.std[rec]
+        errors[f"std {rec}"] = abs(math.log(ratio)) / math.log(STD_TOLERANCE)
         penalty += 100.0 * max(0.0, abs(math.log(ratio)) - math.log(STD_FIT_FACTOR)) ** 2
         try:
             if rec in tg.modes:
@@ -193,6 +223,7 @@ def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple
                 mode_errors(f"{rec} second", least_damped(fourth_order_modes_of(sim)), tg.second_mode)
         except (ValueError, np.linalg.LinAlgError):  # no model for these parameters
             penalty += 10.0
+    errors.update(_issue15_errors(sims, tg))
     sim_stair = lev.simulate(tg.stair.u, Ts=tg.stair.Ts, seed=seed)
     rms = float(np.sqrt(np.mean((stair_averages(sim_stair)[1] - tg.y_bar) ** 2)))
     penalty += 100.0 * max(0.0, rms / (STATIC_FIT_SHARE * tg.static_tolerance) - 1.0) ** 2
@@ -202,6 +233,26 @@ def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple
     except ValueError:  # the steps never reach 90 %
         penalty += 10.0
     return errors, penalty
+
+
+def _issue15_errors(sims: dict[str, IOData], tg: FrictionTargets) -> dict[str, float]:
+    """Tolerance-scaled errors of the std ratio, the ARMAX modes and the frequency responses."""
+    white, big = WHITE_RECORD, "binary_signal_2"
+    ratio_sim = output_std(sims[big]) / max(output_std(sims[white]), 1e-9)
+    errors = {"std ratio": abs(ratio_sim / (tg.std[big] / tg.std[white]) - 1) / RATIO_TOLERANCE}
+    try:
+        sim_modes = two_modes(armax_modes_of(sims[ARMAX_RECORD]))
+    except (ValueError, np.linalg.LinAlgError):
+        sim_modes = (None, None)
+    for key, err in armax_errors(sim_modes, tg.armax).items():
+        tol = ARMAX_WN_TOLERANCE if key.endswith("wn") else ARMAX_ZETA_TOLERANCE
+        errors[f"armax {key}"] = MISSING_MODE_ERROR if math.isnan(err) else abs(err) / tol
+    for rec, real in (tg.frf or {}).items():
+        band = (real.coherence >= FRF_COHERENCE) & (real.w > 0)
+        sim = _frf(sims[rec])
+        diff = 20 * np.log10(np.abs(sim.G[band]) / np.abs(real.G[band]))
+        errors[f"frf {rec}"] = float(np.max(np.abs(diff))) / FRF_TOLERANCE_DB if diff.size else MISSING_MODE_ERROR
+    return errors
 
 
 def friction_cost(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> float:
@@ -250,7 +301,35 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
     return best[1]
 
 
-def _save_figures(lev: Levitator, root: Path | None, out: Path) -> None:
+def frf_figure(cmp: Comparison, path: Path) -> None:
+    """The real records' FRF (±2σ, where coherent) against the simulator's BLA (±2σ) per input class."""
+    from matplotlib.figure import Figure
+
+    frfs = list((cmp.frf or {}).values())
+    fig = Figure(figsize=(3.2 * len(frfs), 4.2), layout="constrained")
+    axes = fig.subplots(2, len(frfs), sharex=True, squeeze=False, height_ratios=[3, 1])
+    for col, c in enumerate(frfs):
+        ax, axc = axes[0, col], axes[1, col]
+        for est, style, label in ((c.real, dict(color="k", lw=0.8), "real (Welch)"),
+                                  (c.sim, dict(color="tab:red", lw=0.8), "simulator BLA")):
+            w, g, band = est.w[1:], np.abs(est.G[1:]), 2 * est.std[1:] / np.sqrt(2)
+            ax.semilogx(w, 20 * np.log10(g), label=label, **style)
+            ax.fill_between(w, 20 * np.log10(np.maximum(g - band, g / 10)), 20 * np.log10(g + band),
+                            color=style["color"], alpha=0.2, lw=0)
+        w = c.real.w
+        ax.fill_between(w, -60, 20, where=c.band, color="tab:green", alpha=0.08, lw=0)
+        ax.set(title=f"{c.record}: max {c.max_db:.1f} dB", ylim=(-45, 15))
+        axc.semilogx(w[1:], c.real.coherence[1:], color="k", lw=0.7)
+        axc.semilogx(w[1:], c.sim.coherence[1:], color="tab:red", lw=0.7)
+        axc.axhline(FRF_COHERENCE, color="tab:green", lw=0.7, ls="--")
+        axc.set(xlim=(10, 1500), ylim=(0, 1), xlabel="ω [rad/s, 1 ms label]")
+    axes[0, 0].set_ylabel("|G| [dB re 1 cm/A]")
+    axes[1, 0].set_ylabel("coherence")
+    axes[0, 0].legend(fontsize=7, loc="lower left")
+    fig.savefig(path, dpi=80)
+
+
+def _save_figures(lev: Levitator, root: Path | None, out: Path, cmp: Comparison | None = None) -> None:
     from matplotlib.figure import Figure
 
     from maglev.lab.plots import plot_working_region
@@ -268,6 +347,8 @@ def _save_figures(lev: Levitator, root: Path | None, out: Path) -> None:
     ax1.set_ylabel("y [cm]")
     ax1.legend()
     fig.savefig(out / "staircase.png", dpi=120)
+    if cmp is not None and cmp.frf:
+        frf_figure(cmp, out / "sim_vs_real_frf.png")
     print(f"figures written to {out}")
 
 
@@ -276,9 +357,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--refdata", type=Path, default=None, help="reference data root (default: ../shared/refdata)")
     parser.add_argument("--out", type=Path, default=None, help="directory for PNG figures")
     parser.add_argument("--no-fit", action="store_true", help="compare the current defaults only")
-    parser.add_argument("--friction-evals", type=int, default=40,
-                        help="Nelder-Mead evaluations of the friction fit from the defaults "
-                        "(≈ 1.5 s each; 0 skips it; the defaults came from ≈ 1200, docs/simulator.md)")
+    parser.add_argument("--friction-evals", type=int, default=0,
+                        help="Nelder-Mead evaluations of the friction fit from the defaults (≈ 2 s each; "
+                        "default 0: with issue 15's checks scored a polish trades the rise time for them, "
+                        "docs/simulator.md)")
     args = parser.parse_args(argv)
     root = args.refdata or refdata_dir()
     if root is None:
@@ -296,9 +378,10 @@ def main(argv: list[str] | None = None) -> int:
         print("Fitted parameters (differences from the current defaults):")
         print("  " + (", ".join(f"{k}={v!r}" for k, v in fitted.items()) or "none"))
         print()
-    print(compare(lev, root).table())
+    cmp = compare(lev, root)
+    print(cmp.table())
     if args.out is not None:
-        _save_figures(lev, root, args.out)
+        _save_figures(lev, root, args.out, cmp)
     return 0
 
 

@@ -71,7 +71,7 @@ class LevitatorParams:
     stiction_upper: float = 0.08819  # N, extra friction at low speed (Stribeck peak) on the upper magnet
     v_stribeck: float = 1.316  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
     v_creep: float = 0.713  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
-    h_top: float = 12.0  # cm, top stop of the upper magnet (the upper coil)
+    h_top: float = 16.0  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
     i_sat: float = 3.899  # A, current-regulator saturation
     delay: float = 0.0  # s (physical), pure input delay beyond the one-sample read-then-write lag
     t_phys: float = 0.005852  # s of physics per logged sample labelled 1 ms

@@ -20,6 +20,16 @@ order shows both on every record:
   back), so its least-damped mode (pairs slower than 30 rad/s are drift or stick
   plateaus and are skipped) is the 215 rad/s one.
 
+The issue-15 checks (``ARMAX_ORDERS``, ``FRF_CLASSES``):
+
+* ARMAX [4 4 4 1] on ``binary_signal_2`` at the labelled 1 ms, as the 2022 group
+  identified it (whole record mean removed, first half): the rig shows two lightly
+  damped modes (≈ 74 and ≈ 218 rad/s);
+* the real records' Welch frequency-response estimate (:func:`maglev.bla.frequency_response`,
+  with its coherence-based error) against the simulator's best linear approximation
+  for the same input class (:func:`maglev.bla.bla`), both trimmed and detrended at 1 ms,
+  compared in dB where the real estimate's coherence is at least ``FRF_COHERENCE``.
+
 Frequencies are in rad/s of the 1 ms label the records carry.
 """
 
@@ -35,13 +45,16 @@ from scipy import signal
 from maglev.lab.averages import get_stationary_averages
 from maglev.lab.input_design import choose_alpha, output_spectrum
 from maglev.lab.sampling import rise_time
+from maglev import bla as bla_mod
 from maglev.data import IOData
-from maglev.estimate import oe
+from maglev.estimate import armax, oe
+from maglev.labdata import ExperimentSpec
 from maglev.plant import Levitator
 from maglev.refdata import load_record
 
-__all__ = ["Mode", "Comparison", "compare", "dominant_mode", "complex_modes", "least_damped", "dominant_mode_of",
-           "fourth_order_modes_of", "output_std", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
+__all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
+           "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
+           "output_std", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
 STAIR_TAIL = 50.0
@@ -61,6 +74,24 @@ RECORD_INPUTS = {"binary_signal_1": "bin α.25 1.5-3 A", "binary_signal_2": "bin
                  "white_noise_1": "U(1.5, 3) A", "white_noise_2": "U(1.75, 2.5) A",
                  "white_noise_4": "U(1.5, 4) A"}
 STD_RECORDS = tuple(RECORD_INPUTS)
+# issue 15: the 2022 group's ARMAX on the α .25 1.5-4 A record, and the frequency-domain comparison
+ARMAX_ORDERS = (4, 4, 4, 1)  # na, nb, nc, nk, at the labelled 1 ms
+ARMAX_RECORD = "binary_signal_2"
+SLOW_BAND, FAST_BAND = (40.0, 150.0), (150.0, 400.0)  # rad/s: where the two lightly damped modes lie
+LIGHTLY_DAMPED = 0.6  # ζ below which a pair counts as a lightly damped mode
+ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE = 0.15, 0.30
+STD_TOLERANCE = 1.25  # output stds within [1/1.25, 1.25] of the real ones
+RATIO_TOLERANCE = 0.25  # binary α .25 / white-noise std ratio within 25 % of the rig's
+FRF_CLASSES = {  # real record -> its input class (the simulator's BLA is estimated for this class)
+    "binary_signal_2": ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=20.0),
+    "binary_signal_3": ExperimentSpec("binary", 1.5, 4.0, alpha=0.5, duration_s=20.0),
+    "white_noise_4": ExperimentSpec("uniform", 1.5, 4.0, duration_s=20.0),
+}
+FRF_PREPROCESS = bla_mod.Preprocess(trim=2000, detrend=True, decimate=1)
+FRF_SEGMENT_S = 1.0  # s per Welch segment: 17+ averages on a 20 s record, 6.3 rad/s resolution
+FRF_COHERENCE = 0.5  # the real estimate's coherence above which the magnitudes are compared
+FRF_TOLERANCE_DB = 3.0
+FRF_REALISATIONS = 8
 
 Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 
@@ -133,6 +164,20 @@ def fourth_order_modes_of(data: IOData) -> list[Mode]:
     return complex_modes(oe(d, *FOURTH_ORDERS).poles(), d.Ts)
 
 
+def armax_modes_of(data: IOData) -> list[Mode]:
+    """Complex modes of ARMAX [4 4 4 1] on the first half of the record with its mean removed (no trim)."""
+    est, _ = data.detrend().split(0.5)
+    return complex_modes(armax(est, *ARMAX_ORDERS).poles(), data.Ts)
+
+
+def two_modes(modes: list[Mode]) -> tuple[Mode | None, Mode | None]:
+    """The least-damped lightly damped mode in ``SLOW_BAND`` and in ``FAST_BAND`` (None where there is none)."""
+    def pick(band: tuple[float, float]) -> Mode | None:
+        inside = [m for m in modes if band[0] <= m[0] < band[1] and m[1] < LIGHTLY_DAMPED]
+        return min(inside, key=lambda m: m[1]) if inside else None
+    return pick(SLOW_BAND), pick(FAST_BAND)
+
+
 def least_damped(modes: list[Mode], slowest: float = SLOWEST_RESONANCE) -> Mode:
     """The mode with the smallest ζ among those with ωn >= ``slowest`` (NaNs if there is none)."""
     resonances = [m for m in modes if m[0] >= slowest]
@@ -145,6 +190,61 @@ def _within(sim: Mode, real: Mode) -> bool:
 
 def _modes_text(modes: list[Mode]) -> str:
     return ", ".join(f"{w:.0f}/{z:.2f}" for w, z in modes) or "none"
+
+
+# ---------------------------------------------------------------------- frequency domain
+@dataclass(frozen=True)
+class FrfComparison:
+    """A real record's Welch FRF against the simulator's BLA for the same input class."""
+
+    record: str
+    real: bla_mod.FrequencyResponse
+    sim: bla_mod.BLA
+
+    @property
+    def band(self) -> np.ndarray:
+        """Frequencies (mask) where the real estimate's coherence is at least ``FRF_COHERENCE``."""
+        return (self.real.coherence >= FRF_COHERENCE) & (self.real.w > 0)
+
+    @property
+    def difference_db(self) -> np.ndarray:
+        """|G_BLA| / |G_real| in dB over :attr:`band`."""
+        b = self.band
+        return 20 * np.log10(np.abs(self.sim.G[b]) / np.abs(self.real.G[b]))
+
+    @property
+    def max_db(self) -> float:
+        d = self.difference_db
+        return float(np.max(np.abs(d))) if d.size else math.nan
+
+    @property
+    def rms_db(self) -> float:
+        d = self.difference_db
+        return float(np.sqrt(np.mean(d ** 2))) if d.size else math.nan
+
+    @property
+    def real_error_db(self) -> float:
+        """Median 1-σ magnitude error of the real estimate over the band [dB]."""
+        b = self.band
+        rel = self.real.std[b] / np.sqrt(2) / np.abs(self.real.G[b])
+        return float(np.median(20 * np.log10(1 + rel))) if b.any() else math.nan
+
+    def text(self) -> str:
+        w = self.real.w[self.band]
+        span = f"{w.min():5.0f}-{w.max():4.0f}" if w.size else "    none"
+        ok = "yes" if self.max_db <= FRF_TOLERANCE_DB else "no"
+        return (f"{self.record:>16} {span} {w.size:5d} {self.max_db:7.1f} {self.rms_db:7.1f} "
+                f"{self.real_error_db:9.1f}   within {FRF_TOLERANCE_DB:g} dB: {ok}")
+
+
+def compare_frf(lev: Levitator, record: str, root: Path | None = None, real: IOData | None = None,
+                realisations: int = FRF_REALISATIONS) -> FrfComparison:
+    """The real record's FRF and the simulator's BLA for its input class (``FRF_CLASSES``), same settings."""
+    real = real if real is not None else load_record(record, root)
+    spec = FRF_CLASSES[record]
+    sim = bla_mod.bla(spec, lev, preprocess=FRF_PREPROCESS, realisations=realisations, segment_s=FRF_SEGMENT_S)
+    return FrfComparison(record=record, real=bla_mod.frequency_response(FRF_PREPROCESS.apply(real), FRF_SEGMENT_S),
+                         sim=sim)
 
 
 # ---------------------------------------------------------------------- the comparison
@@ -168,6 +268,14 @@ class Comparison:
     startup_real: tuple[float, float] = (math.nan, math.nan)  # 0 -> 3 A (binary_signal_9): peak, final [cm]
     startup_sim: tuple[float, float] = (math.nan, math.nan)
     fourth_order: dict[str, tuple[list[Mode], list[Mode]]] | None = None  # record -> (real, sim) OE(4,4,5) modes
+    armax: tuple[list[Mode], list[Mode]] | None = None  # (real, sim) ARMAX [4 4 4 1] modes of ARMAX_RECORD
+    frf: dict[str, FrfComparison] | None = None  # record -> real FRF vs simulated BLA
+
+    @property
+    def std_ratio(self) -> tuple[float, float]:
+        """(real, sim) output-std ratio binary α .25 / white noise, both 1.5-4 A."""
+        (b_r, b_s), (w_r, w_s) = self.stds["binary_signal_2"], self.stds[WHITE_RECORD]
+        return b_r / w_r, b_s / w_s
 
     @property
     def static_rms(self) -> float:
@@ -220,27 +328,49 @@ class Comparison:
             lines += ["", f"Output std after dropping the first {TRANSIENT_FRACTION:.0%} [cm] (amplitude dependence)",
                       f"{'record':>16} {'input':>18} {'real':>7} {'sim':>7} {'sim/real':>8}"]
             for rec, (sr, ss) in self.stds.items():
-                lines.append(f"{rec:>16} {RECORD_INPUTS.get(rec, ''):>18} {sr:7.3f} {ss:7.3f} {ss / sr:8.2f}")
+                ok = "yes" if 1 / STD_TOLERANCE <= ss / sr <= STD_TOLERANCE else "no"
+                lines.append(f"{rec:>16} {RECORD_INPUTS.get(rec, ''):>18} {sr:7.3f} {ss:7.3f} {ss / sr:8.2f}  "
+                             f"within [{1 / STD_TOLERANCE:.2f}, {STD_TOLERANCE:.2f}]: {ok}")
             if "binary_signal_2" in self.stds and WHITE_RECORD in self.stds:
-                (b_r, b_s), (w_r, w_s) = self.stds["binary_signal_2"], self.stds[WHITE_RECORD]
-                lines.append(f"  binary α .25 / white noise, both 1.5-4 A: real {b_r / w_r:.1f}x, sim {b_s / w_s:.1f}x")
+                real, sim = self.std_ratio
+                ok = "yes" if abs(sim / real - 1) <= RATIO_TOLERANCE else "no"
+                lines.append(f"  binary α .25 / white noise, both 1.5-4 A: real {real:.1f}x, sim {sim:.1f}x "
+                             f"({sim / real - 1:+.0%}; within {RATIO_TOLERANCE:.0%}: {ok})")
+        if self.armax:
+            lines += ["", f"ARMAX {list(ARMAX_ORDERS)} on {ARMAX_RECORD} at 1 ms (mean removed, first half): "
+                      f"lightly damped modes (wn/zeta) in {SLOW_BAND[0]:g}-{SLOW_BAND[1]:g} and "
+                      f"{FAST_BAND[0]:g}-{FAST_BAND[1]:g} rad/s"]
+            picked = [two_modes(m) for m in self.armax]
+            for label, modes, pair in zip(("real", "sim"), self.armax, picked):
+                lines.append(f"  {label:>4}: {_modes_text([m for m in pair if m]):<22} (all: {_modes_text(modes)})")
+            lines.append("  errors: " + _armax_errors_text(*picked))
+        if self.frf:
+            lines += ["", f"Frequency response, real Welch estimate vs the simulator's BLA for the same input class "
+                      f"(trim {FRF_PREPROCESS.trim}, detrended, {FRF_SEGMENT_S:g} s segments); "
+                      f"where the real coherence >= {FRF_COHERENCE:g}",
+                      f"{'record':>16} {'band rad/s':>10} {'bins':>5} {'max dB':>7} {'rms dB':>7} {'real ±dB':>9}"]
+            lines += [c.text() for c in self.frf.values()]
         return "\n".join(lines)
 
 
 def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] = POLE_RECORDS,
             seed: int = 1, std_records: tuple[str, ...] = STD_RECORDS,
-            fourth_order_records: tuple[str, ...] = POLE_RECORDS + (WHITE_RECORD,)) -> Comparison:
+            fourth_order_records: tuple[str, ...] = POLE_RECORDS + (WHITE_RECORD,),
+            armax_check: bool = True, frf_records: tuple[str, ...] = tuple(FRF_CLASSES)) -> Comparison:
     """Simulate the real records' inputs with ``lev`` and compare the lab's numbers.
 
     ``records``: dominant OE(2,2,3) modes; ``std_records``: output std;
-    ``fourth_order_records``: OE(4,4,5) modes (empty to skip these slower fits).
+    ``fourth_order_records``: OE(4,4,5) modes (empty to skip these slower fits);
+    ``armax_check``: ARMAX [4 4 4 1] modes of ``ARMAX_RECORD``; ``frf_records``: real
+    FRF vs the simulator's BLA (cached on disk, :mod:`maglev.bla`).
     """
     stair = load_record("working_region", root)
     sim_stair = lev.simulate(stair.u, Ts=stair.Ts, seed=seed)
     u_bar, y_real = stair_averages(stair)
     _, y_sim = stair_averages(sim_stair)
     pairs = {}  # record -> (real, simulated), each simulated once
-    for rec in dict.fromkeys(records + std_records + fourth_order_records + (WHITE_RECORD, "binary_signal_9")):
+    extra = (ARMAX_RECORD,) if armax_check else ()
+    for rec in dict.fromkeys(records + std_records + fourth_order_records + extra + (WHITE_RECORD, "binary_signal_9")):
         real = load_record(rec, root)
         pairs[rec] = (real, lev.simulate(real.u, Ts=real.Ts, seed=seed))
     modes = {rec: tuple(dominant_mode_of(d) for d in pairs[rec]) for rec in records}
@@ -263,4 +393,28 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         rise_real=rise_r, rise_sim=rise_s,
         alpha_real=alpha(wn), alpha_sim=alpha(sim_wn), modes=modes,
         overshoot_real=over_r, overshoot_sim=over_s, stds=stds, fourth_order=fourth or None,
+        armax=tuple(armax_modes_of(d) for d in pairs[ARMAX_RECORD]) if armax_check else None,
+        frf={rec: compare_frf(lev, rec, root) for rec in frf_records} or None,
     )
+
+
+def armax_errors(sim: tuple[Mode | None, Mode | None], real: tuple[Mode | None, Mode | None]) -> dict[str, float]:
+    """Relative errors of ωn and ζ of the two ARMAX modes (NaN where either side lacks the mode)."""
+    out = {}
+    for name, s, r in zip(("slow", "fast"), sim, real):
+        out[f"{name} wn"] = s[0] / r[0] - 1 if s and r else math.nan
+        out[f"{name} zeta"] = s[1] / r[1] - 1 if s and r else math.nan
+    return out
+
+
+def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | None, Mode | None]) -> str:
+    errs = armax_errors(sim, real)
+    parts = []
+    for name in ("slow", "fast"):
+        wn, z = errs[f"{name} wn"], errs[f"{name} zeta"]
+        if math.isnan(wn):
+            parts.append(f"{name} mode missing")
+        else:
+            ok = abs(wn) <= ARMAX_WN_TOLERANCE and abs(z) <= ARMAX_ZETA_TOLERANCE
+            parts.append(f"{name} wn {wn:+.0%} zeta {z:+.0%} ({'yes' if ok else 'no'})")
+    return "; ".join(parts) + f" [tolerances {ARMAX_WN_TOLERANCE:.0%} / {ARMAX_ZETA_TOLERANCE:.0%}]"

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from maglev import sim_vs_real
+from maglev.bla import FrequencyResponse
 from maglev.plant import Levitator
 from maglev.refdata import KTH_2022
 
@@ -45,7 +46,7 @@ def test_complex_modes_lists_every_pair_slowest_first_and_least_damped_picks_sma
 @pytest.mark.realdata
 def test_defaults_reproduce_the_real_records():
     cmp = sim_vs_real.compare(Levitator(zero_at_10=True), REAL, records=("binary_signal_3",),
-                              fourth_order_records=())
+                              fourth_order_records=(), armax_check=False, frf_records=())
     # static curve within 5 x the sensor noise std (rms over the 21 levels)
     assert cmp.static_rms <= cmp.static_tolerance
     std_r, peak_r, q_r = cmp.noise_real
@@ -121,3 +122,73 @@ def test_damping_falls_with_amplitude_as_on_the_rig(full_comparison):
     for big, small in (("binary_signal_2", "binary_signal_3"), ("binary_signal_1", "binary_signal_4")):
         assert modes[big][0][1] < modes[small][0][1]  # real
         assert modes[big][1][1] < modes[small][1][1]  # simulated
+
+
+# ---------------------------------------------------------------------- issue 15: ARMAX modes, FRF vs BLA
+def _response(G: np.ndarray, coherence: np.ndarray) -> FrequencyResponse:
+    w = np.linspace(0.0, np.pi / 1e-3, G.size)
+    ones = np.ones(G.size)
+    return FrequencyResponse(w=w, G=G, std=0.1 * np.abs(G), coherence=coherence, Suu=ones, Syy=ones, Ts=1e-3,
+                             averages=10)
+
+
+def test_frf_comparison_scores_the_coherent_band_only():
+    n = 9
+    real = _response(np.full(n, 1.0 + 0j), np.array([1.0, 0.9, 0.9, 0.2, 0.6, 0.4, 0.7, 0.1, 0.0]))
+    sim_G = np.array([9.0, 2.0, 1.0, 100.0, 0.5, 100.0, 1.0, 100.0, 100.0], dtype=complex)
+    sim = _response(sim_G, np.ones(n))
+    cmp = sim_vs_real.FrfComparison(record="x", real=real, sim=sim)
+    # DC and the bins with coherence < FRF_COHERENCE are left out
+    assert cmp.band.tolist() == [False, True, True, False, True, False, True, False, False]
+    np.testing.assert_allclose(cmp.difference_db, 20 * np.log10([2.0, 1.0, 0.5, 1.0]))
+    assert cmp.max_db == pytest.approx(20 * np.log10(2.0))
+    assert "within 3 dB: no" in cmp.text()
+
+
+def test_two_modes_picks_the_least_damped_pair_per_band():
+    modes = [(20.0, 0.05), (74.0, 0.26), (95.0, 0.4), (218.0, 0.11), (230.0, 0.7), (3400.0, 0.3)]
+    assert sim_vs_real.two_modes(modes) == ((74.0, 0.26), (218.0, 0.11))
+    assert sim_vs_real.two_modes([(124.0, 0.18)]) == ((124.0, 0.18), None)
+    errs = sim_vs_real.armax_errors(((124.0, 0.18), None), ((74.0, 0.26), (218.0, 0.11)))
+    assert errs["slow wn"] == pytest.approx(124 / 74 - 1) and np.isnan(errs["fast zeta"])
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_rig_shows_two_lightly_damped_armax_modes_and_coherent_frequency_responses(full_comparison):
+    # the issue's numbers for binary_signal_2: ≈ 74 rad/s ζ ≈ 0.26 and ≈ 218 rad/s ζ ≈ 0.11
+    slow, fast = sim_vs_real.two_modes(full_comparison.armax[0])
+    assert slow == pytest.approx((74, 0.26), rel=0.03) and fast == pytest.approx((218, 0.11), rel=0.05)
+    for rec, c in full_comparison.frf.items():
+        assert c.band.sum() >= 40, rec  # a usable band where the real estimate is coherent
+        assert c.real_error_db < 1.0, rec  # and its magnitude known to better than 1 dB there
+        assert np.median(c.sim.std[c.band] / np.abs(c.sim.G[c.band])) < 0.1  # the BLA's own error is small
+
+
+# Issue 15's done-when checks the defaults do not meet yet (docs/simulator.md, "Not matched"):
+# strict xfail, so the suite says so when a new plant model meets them.
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.xfail(strict=True, reason="the simulator shows one ARMAX mode near 124 rad/s (docs/simulator.md)")
+def test_armax_modes_of_binary_signal_2_match_the_rig(full_comparison):
+    real, sim = (sim_vs_real.two_modes(m) for m in full_comparison.armax)
+    errs = sim_vs_real.armax_errors(sim, real)
+    assert all(abs(errs[f"{m} wn"]) <= 0.15 and abs(errs[f"{m} zeta"]) <= 0.30 for m in ("slow", "fast"))
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.xfail(strict=True, reason="α .25 / white-noise std ratio 7x vs the rig's 20x (docs/simulator.md)")
+def test_output_stds_and_their_ratio_match_the_rig(full_comparison):
+    for rec, (real, sim) in full_comparison.stds.items():
+        assert 0.8 <= sim / real <= 1.25, rec
+    real, sim = full_comparison.std_ratio
+    assert abs(sim / real - 1) <= 0.25
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.xfail(strict=True, reason="BLA 6-10 dB off the rig's FRF in places (docs/simulator.md)")
+def test_bla_within_3_db_of_the_rigs_frequency_response(full_comparison):
+    for rec in ("binary_signal_2", "white_noise_4"):
+        assert full_comparison.frf[rec].max_db <= 3.0, rec
