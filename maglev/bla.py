@@ -104,6 +104,20 @@ class FrequencyResponse:
     def magnitude_db(self) -> np.ndarray:
         return 20 * np.log10(np.abs(self.G))
 
+    def bounds(self, level: float = 0.99, name: str | None = None) -> "FrequencyBounds":
+        """The estimate with pointwise bounds at ``level`` (ω > 0), for :func:`maglev.plots.plot_bode`.
+
+        The complex error is taken as circular: the magnitude's standard error is std/√2 and
+        the phase's std/(√2 |G|) (in degrees).
+        """
+        from maglev.uncertainty import FrequencyBounds, multiplier
+
+        keep = self.w > 0
+        sd_mag = self.std[keep] / math.sqrt(2.0)
+        k, coverage = multiplier(level)
+        return FrequencyBounds(w=self.w[keep], response=self.G[keep], sd_magnitude=sd_mag,
+                               sd_phase=np.degrees(sd_mag / np.abs(self.G[keep])), k=k, level=coverage, name=name)
+
     def simulate(self, u: np.ndarray) -> np.ndarray:
         """G u as a frequency-domain (two-sided FIR) filter: the inverse FFT of G on the Welch grid.
 

@@ -58,13 +58,11 @@ def check(cfg: dict) -> None:
         raise StudyConfigError("dataset.preprocess: decimate must be >= 1 and trim >= 0, "
                                f"got decimate={pp['decimate']}, trim={pp['trim']}")
     if ds["source"] == "sim":
-        from maglev.labdata import ExperimentSpec
+        from maglev.study.datasets import sim_spec
 
         try:
-            ExperimentSpec(kind=ds["input_class"], low=ds["low"], high=ds["high"],
-                           alpha=ds["alpha"] if ds["input_class"] == "binary" else None,
-                           duration_s=ds["duration_s"], seed=ds["seed"], Ts=ds["Ts"])
-        except ValueError as exc:
+            sim_spec(ds)
+        except (TypeError, ValueError) as exc:
             raise StudyConfigError(f"dataset {ds['name']!r}: {exc}") from None
     else:
         try:

@@ -61,14 +61,34 @@ def load_raw(ds: dict, data_dir: str) -> IOData:
     raise ValueError(f"dataset {ds.get('name')!r}: source must be 'sim' or 'file', got {ds['source']!r}")
 
 
+def sim_spec(ds: dict):
+    """The simulator's record spec (:class:`maglev.labdata.ExperimentSpec`) of a ``source: sim`` dataset."""
+    from maglev.labdata import ExperimentSpec
+
+    kind = str(ds["input_class"])
+    return ExperimentSpec(kind=kind, low=float(ds["low"]), high=float(ds["high"]),
+                          alpha=float(ds["alpha"]) if kind == "binary" else None,
+                          duration_s=float(ds["duration_s"]), seed=int(ds["seed"]), Ts=float(ds["Ts"]))
+
+
+def dataset_bla(ds: dict):
+    """The simulator's best linear approximation for a simulated dataset's input class, on the time base
+    of its models (the dataset's trim, detrend and decimation; :func:`maglev.bla.bla`, cached)."""
+    from maglev.bla import Preprocess, bla
+
+    pp = ds["preprocess"]
+    return bla(sim_spec(ds), preprocess=Preprocess(trim=int(pp["trim"]), detrend=bool(pp["detrend"]),
+                                                   decimate=int(pp["decimate"])))
+
+
 @functools.lru_cache(maxsize=16)
 def _simulate(kind, low, high, alpha, duration_s, seed, Ts, name) -> IOData:
     from dataclasses import replace
 
-    from maglev.labdata import ExperimentSpec, experiment
+    from maglev.labdata import experiment
 
-    spec = ExperimentSpec(kind=kind, low=low, high=high, alpha=alpha if kind == "binary" else None,
-                          duration_s=duration_s, seed=seed, Ts=Ts)
+    spec = sim_spec({"input_class": kind, "low": low, "high": high, "alpha": alpha, "duration_s": duration_s,
+                     "seed": seed, "Ts": Ts})
     return replace(experiment(spec), name=name)
 
 

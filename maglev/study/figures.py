@@ -14,9 +14,10 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid
+from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid, plot_step
 
-DPI = 90
+DPI = 150  # the report's figures (issue 12: >= 150 dpi)
+LEVEL = 0.99  # confidence level of every band the study draws
 
 
 def png(fig: Figure, dpi: int = DPI) -> bytes:
@@ -26,9 +27,10 @@ def png(fig: Figure, dpi: int = DPI) -> bytes:
 
 
 def best_worst_figures(best, worst, resid_best, resid_worst, fit_best: float, fit_worst: float) -> dict:
-    """``bode``: both overlaid; ``pzmap``: both maps together; ``resid``: their correlations side by side."""
-    bode = plot_bode([best, worst])
-    pz = plot_pzmap([best, worst])
+    """``bode``: both overlaid; ``pzmap``: both maps together (99 % bounds and regions); ``resid``: their
+    correlations side by side."""
+    bode = plot_bode([best, worst], level=LEVEL)
+    pz = plot_pzmap([best, worst], level=LEVEL)
     fig = Figure(figsize=(13, 6), layout="constrained")
     axes = fig.subplots(2, 2)
     for col, (result, model, fit) in enumerate(((resid_best, best, fit_best), (resid_worst, worst, fit_worst))):
@@ -74,37 +76,23 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
     return fig
 
 
-def run_figures(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon) -> dict:
-    """The four figures of one model run: compare (one-step and simulation), resid, pzmap, Bode with the
-    spectral estimate of the whole record (and the true system where known)."""
+def run_figures(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon, ref=None) -> dict:
+    """The five figures of one model run, with 99 % bounds from the model's covariance: compare (one-step
+    and simulation), resid, pzmap, step and Bode.  The Bode diagram overlays the reference G is scored
+    against: the simulator's BLA for the dataset's input class (``ref``) with its 99 % band, else this
+    record's own spectral estimate with its band; and the small-signal Jacobian dashed where known."""
+    from maglev.bla import frequency_response
+
     label = model.label
     fig_c = plot_compare(prep.val, [yhat, ysim], [val_fit, val_fit_sim],
                          labels=[f"{label} {horizon}-step", f"{label} simulation"])
     fig_c.axes[0].set_title(f"Validation data {prep.val_name}", fontsize="medium")
     systems = [model] + ([true_sys] if true_sys is not None else [])
-    fig_pz = plot_pzmap(systems)
-    fig_b = plot_bode(model, true_system=true_sys)
-    w, g = _spectral_estimate(prep.data)
-    ax_mag, ax_ph = fig_b.axes[0], fig_b.axes[1]
-    nyq = math.pi / prep.data.Ts
-    keep = w <= nyq
-    ax_mag.semilogx(w[keep], 20 * np.log10(np.abs(g[keep])), ".", color="0.5", markersize=3,
-                    label="spectral estimate Φyu/Φuu", zorder=0)
-    ax_ph.semilogx(w[keep], np.degrees(np.unwrap(np.angle(g[keep]))), ".", color="0.5", markersize=3,
-                   zorder=0)
-    ax_mag.legend(loc="best", fontsize="small")
-    return {"compare.png": fig_c, "resid.png": plot_resid(rr), "pzmap.png": fig_pz, "bode.png": fig_b}
-
-
-def _spectral_estimate(data, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Nonparametric G = Φyu/Φuu by Welch cross-spectra (Hann windows, 50 % overlap); (ω rad/s, G)."""
-    from scipy import signal
-
-    nperseg = nperseg or int(min(512, max(64, data.N // 16)))
-    f, p_uy = signal.csd(data.u, data.y, fs=1.0 / data.Ts, nperseg=nperseg)
-    _, p_uu = signal.welch(data.u, fs=1.0 / data.Ts, nperseg=nperseg)
-    keep = f > 0
-    return 2 * math.pi * f[keep], p_uy[keep] / p_uu[keep]
+    reference = (ref.bounds(LEVEL, "BLA of the simulator, this input class") if ref is not None else
+                 frequency_response(prep.data).bounds(LEVEL, "spectral estimate of this record"))
+    return {"compare.png": fig_c, "resid.png": plot_resid(rr), "pzmap.png": plot_pzmap(systems, level=LEVEL),
+            "step.png": plot_step(systems, level=LEVEL),
+            "bode.png": plot_bode([model, reference], true_system=true_sys, level=LEVEL)}
 
 
 def orders_figure(runs: pd.DataFrame) -> Figure:

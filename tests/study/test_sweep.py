@@ -12,7 +12,7 @@ import pytest
 
 from .harness import TINY, all_runs, artifact_paths, launch, study_log
 
-FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png"}
+FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png", "figures/step.png"}
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
 
@@ -49,7 +49,8 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
         assert t["git_commit"] and t["orders"] == "[2 2 2]" and t["sweep"] == "tiny"
         for key in ("val_fit", "val_fit_sim", "est_fit", "loss", "fpe", "aic", "bic", "n_params",
                     "fit_seconds", "iterations", "whiteness_pvalue", "whiteness_pass",
-                    "independence_pvalue", "independence_pass", "g_h2_rel_err", "dcgain_rel_err"):
+                    "independence_pvalue", "independence_pass", "g_h2_rel_err", "dcgain_rel_err",
+                    "val_fit_naive", "g_bla_err", "g_bla_err_unweighted", "bla_fit_ceiling", "near_cancellations"):
             assert key in m, key
         # Output error on small white noise (uniform_narrow, U(1.75, 2.5)) predicts poorly, as on the
         # real rig (white_noise_2): dry friction holds small motions back. Models with a noise model,
