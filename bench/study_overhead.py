@@ -1,142 +1,142 @@
-"""Per-run overhead of tracking and plotting next to estimation, for the study's runs.
+"""Where a study run's time goes, and how long the default lab sweep takes.
 
-    python bench/study_overhead.py [--repeats 5] [--duration 20] [--structures arx,oe,armax,bj]
+    python bench/study_overhead.py [--repeats 5] [--structures arx,oe,armax,bj] [--sweep]
 
-Each repeat runs, for every structure, the same steps as one study job and times them
-separately: data (simulate + preprocess), estimation, validation (compare + resid),
-figures (building the four matplotlib figures), and tracking into a fresh temporary
-SQLite store (skip-check query, create run, params, PNG encoding + artifact upload,
-metrics, finish); PNG encoding is timed on its own ("png-encode").  Prints the medians in a table (seconds) and the tracking+plotting
-share of the run.
+Per run (the default lab dataset uniform_wide, 24 s; the job's own functions): data
+(simulate + preprocess, cached per process in a sweep, so shown apart), estimation
+(the estimator call), validation (compare, resid, naive FIT, BLA distance — everything
+else ``identify`` does), tracking (skip query, run, params, artifacts, metrics), and
+the five figures (build + PNG at 150 dpi), which a sweep on the basic launcher draws
+in a background process (:mod:`maglev.study.render`) while the next run estimates.
+"beyond estimation, critical path" is validation + tracking + handing the figure
+inputs to the renderer (pickling); the figures are shown beside it.  Medians over the
+repeats, single-threaded BLAS.  ``--sweep`` also times ``python study.py -m +sweep=lab``
+as a process into a temporary store (wall and CPU seconds, its ranking and report included).
 """
 
 from __future__ import annotations
 
 import argparse
-import math
-import shutil
+import os
+import pickle
+import resource
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
 import warnings
 from pathlib import Path
 
-import matplotlib
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
 
 from omegaconf import OmegaConf  # noqa: E402
 
-from maglev.estimate import estimate  # noqa: E402
-from maglev.study import datasets, identify as ident, tracking  # noqa: E402
-from maglev.structures import get as structure  # noqa: E402
+from maglev.study import datasets, tracking  # noqa: E402
 from maglev.study.config import config_hash, flatten  # noqa: E402
-from maglev.study.figures import run_figures  # noqa: E402
-from maglev.validate import compare, resid  # noqa: E402
+from maglev.study.figures import RUN_DPI, png, run_figures  # noqa: E402
+from maglev.study.identify import identify, run_label  # noqa: E402
 
-STEPS = ("data", "estimate", "validate", "figures", "png-encode", "track:query", "track:run+params",
-         "track:artifacts", "track:metrics+end")
+TARGET_BEYOND_S = 0.3  # issue 12: per-run time beyond estimation (median)
+TARGET_SWEEP_S = 30.0  # issue 12: the default lab sweep on the 2-core machine
 
 
-def config(structure: str, duration: float, uri: str, art: str) -> dict:
+def config(structure: str, uri: str, art: str) -> dict:
     from hydra import compose, initialize_config_dir
 
     import maglev.study.schema  # noqa: F401
+    from maglev.study.config import task_config
 
-    conf = Path(__file__).resolve().parents[1] / "conf"
-    with initialize_config_dir(version_base="1.3", config_dir=str(conf)):
-        cfg = compose("config", overrides=[f"structure={structure}", "dataset=uniform_narrow",
-                                           f"dataset.duration_s={duration}", f"tracking.uri={uri}",
-                                           f"tracking.artifact_location={art}"])
-    return OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    with initialize_config_dir(version_base="1.3", config_dir=str(REPO / "conf")):
+        cfg = compose("config", overrides=[f"structure={structure}", "dataset=uniform_wide",
+                                           f"tracking.uri={uri}", f"tracking.artifact_location={art}"])
+    return task_config(cfg)
 
 
 def one_run(cfg: dict, client, exp_id: str) -> dict[str, float]:
     t: dict[str, float] = {}
-    tic = time.perf_counter()
-
-    def lap(name: str) -> None:
-        nonlocal tic
-        now = time.perf_counter()
-        t[name] = now - tic
-        tic = now
-
     datasets._simulate.cache_clear()
-    prep = datasets.load(cfg["dataset"], cfg["data_dir"])
-    lap("data")
-    st = cfg["structure"]
-    opts = {} if structure(st["name"]).least_squares else {"max_iterations": st["max_iterations"]}
-    model = estimate(prep.est, st["name"], ident.orders_of(st), st["initial_condition"], **opts)
-    lap("estimate")
-    fit, yhat = compare(prep.val, model, 1)
-    fit_sim, ysim = compare(prep.val, model, math.inf)
-    rr = resid(prep.val, model)
-    true_sys = ident.true_plant(prep)
-    metrics = {"val_fit": fit, "val_fit_sim": fit_sim, **ident.true_distance(model, true_sys)}
-    lap("validate")
-    figs = run_figures(prep, model, rr, yhat, ysim, fit, fit_sim, true_sys, 1)
-    lap("figures")
-    tmp = Path(tempfile.mkdtemp(prefix="bench-png-"))
-    pngs = {}
-    for k, f in figs.items():
-        f.savefig(tmp / k, dpi=90)
-        pngs[f"figures/{k}"] = tmp / k
-    lap("png-encode")
+    tic = time.perf_counter()
+    datasets.load(cfg["dataset"], cfg["data_dir"])
+    t["data (once per sweep)"] = time.perf_counter() - tic
+    tic = time.perf_counter()
+    out = identify(cfg)  # the data are cached now, as in a sweep
+    t["estimation"] = out.metrics["fit_seconds"]
+    t["validation"] = time.perf_counter() - tic - t["estimation"]
+    tic = time.perf_counter()
     chash = config_hash(cfg)
     tracking.finished_run(client, exp_id, chash)
-    lap("track:query")
-    run_id = client.create_run(exp_id, run_name=ident.run_label(cfg), tags={"config_hash": chash}).info.run_id
+    run_id = client.create_run(exp_id, run_name=run_label(cfg), tags={"config_hash": chash}).info.run_id
     tracking.log_batch(client, run_id, params=flatten(cfg))
-    lap("track:run+params")
-    files = dict(pngs)
-    files.update({"model/model.json": model.to_json(), "resid/resid.json": rr.to_dict(),
-                  "config/config.yaml": OmegaConf.to_yaml(OmegaConf.create(cfg))})
-    tracking.log_files(client, run_id, files)
-    lap("track:artifacts")
-    tracking.log_batch(client, run_id, metrics=metrics)
+    tracking.log_files(client, run_id, {"model/model.json": out.model.to_json(), "resid/resid.json": out.resid,
+                                        "config/config.yaml": OmegaConf.to_yaml(OmegaConf.create(cfg)),
+                                        "data/data.json": out.prepared.info()})
+    tracking.log_batch(client, run_id, metrics=out.metrics)
     client.set_terminated(run_id, "FINISHED")
-    lap("track:metrics+end")
-    shutil.rmtree(tmp, ignore_errors=True)
+    t["tracking"] = time.perf_counter() - tic
+    tic = time.perf_counter()
+    pickle.dumps(out.figure_inputs)
+    t["hand-off to renderer"] = time.perf_counter() - tic
+    tic = time.perf_counter()
+    for fig in run_figures(out.figure_inputs).values():
+        png(fig, RUN_DPI)
+    t["figures (background)"] = time.perf_counter() - tic
     return t
+
+
+def sweep_time() -> tuple[float, float]:
+    """Wall and CPU seconds of ``python study.py -m +sweep=lab`` into a fresh temporary store."""
+    with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:
+        cmd = [sys.executable, str(REPO / "study.py"), "-m", "+sweep=lab", f"tracking.uri=sqlite:///{tmp}/mlflow.db",
+               f"tracking.artifact_location={tmp}/art", f"hydra.sweep.dir={tmp}/multirun",
+               f"hydra.callbacks.maglev_rank.report_dir={tmp}/reports"]
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        tic = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp)
+        wall = time.perf_counter() - tic
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if proc.returncode:
+            raise SystemExit(f"the sweep failed:\n{proc.stderr[-3000:]}")
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--repeats", type=int, default=5)
-    p.add_argument("--duration", type=float, default=20.0, help="simulated record length (s)")
     p.add_argument("--structures", default="arx,oe,armax,bj")
+    p.add_argument("--sweep", action="store_true", help="also time the default lab sweep as a process")
     a = p.parse_args(argv)
     structures = a.structures.split(",")
     with tempfile.TemporaryDirectory() as tmp:
         uri, art = f"sqlite:///{tmp}/mlflow.db", f"{tmp}/artifacts"
-        tic = time.perf_counter()
         client, exp_id = tracking.connect({"uri": uri, "experiment": "bench", "artifact_location": art})
-        setup = time.perf_counter() - tic
-        cfgs = {s: config(s, a.duration, uri, art) for s in structures}
-        one_run(cfgs[structures[0]], client, exp_id)  # warm-up (imports, first-run costs)
+        cfgs = {s: config(s, uri, art) for s in structures}
+        one_run(cfgs[structures[0]], client, exp_id)  # warm-up (imports, BLA cache, first-run costs)
         times = {s: [one_run(cfgs[s], client, exp_id) for _ in range(a.repeats)] for s in structures}
-    print(f"median seconds per run over {a.repeats} repeats (uniform_narrow, {a.duration:g} s record; "
-          f"store creation once: {setup:.2f} s)\n")
-    header = f"{'step':20s}" + "".join(f"{s:>10s}" for s in structures)
-    print(header)
-    print("-" * len(header))
-    med = {s: {k: statistics.median(r[k] for r in times[s]) for k in STEPS} for s in structures}
-    for k in STEPS:
-        print(f"{k:20s}" + "".join(f"{med[s][k]:10.3f}" for s in structures))
-    print("-" * len(header))
-    rows = {
-        "estimation": lambda m: m["estimate"],
-        "plotting": lambda m: m["figures"] + m["png-encode"],
-        "tracking": lambda m: sum(v for k, v in m.items() if k.startswith("track:")),
-        "total": lambda m: sum(m.values()),
-    }
-    for name, f in rows.items():
-        print(f"{name:20s}" + "".join(f"{f(med[s]):10.3f}" for s in structures))
-    share = [100 * (rows["plotting"](med[s]) + rows["tracking"](med[s])) / rows["total"](med[s]) for s in structures]
-    print(f"{'track+plot share %':20s}" + "".join(f"{v:10.1f}" for v in share))
+    steps = list(times[structures[0]][0])
+    med = {s: {k: statistics.median(r[k] for r in times[s]) for k in steps} for s in structures}
+    print(f"median seconds per run over {a.repeats} repeats (dataset uniform_wide, 24 s record)\n")
+    header = f"| {'step':34s} |" + "".join(f" {s:>7s} |" for s in structures)
+    print(header + "\n|" + "---|" * (len(structures) + 1))
+    for k in steps:
+        print(f"| {k:34s} |" + "".join(f" {med[s][k]:7.3f} |" for s in structures))
+    beyond = {s: med[s]["validation"] + med[s]["tracking"] + med[s]["hand-off to renderer"] for s in structures}
+    print(f"| {'beyond estimation, critical path':34s} |" + "".join(f" {beyond[s]:7.3f} |" for s in structures))
+    worst = max(beyond.values())
+    print(f"\nbeyond estimation: at most {worst:.3f} s per run (target {TARGET_BEYOND_S} s: "
+          f"{'met' if worst <= TARGET_BEYOND_S else 'NOT met'})")
+    if a.sweep:
+        wall, cpu = sweep_time()
+        print(f"default lab sweep (python study.py -m +sweep=lab, 24 runs, ranking and report): {wall:.1f} s wall, "
+              f"{cpu:.1f} s CPU (target {TARGET_SWEEP_S:g} s wall: {'met' if wall <= TARGET_SWEEP_S else 'NOT met'})")
     return 0
 
 

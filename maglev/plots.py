@@ -251,6 +251,23 @@ def plot_bode(
     return ax_mag.figure
 
 
+def plot_arxstruc(table, chosen: Sequence[tuple[int, int, str]] = (), ax: Axes | None = None) -> Figure:
+    """MATLAB's ``selstruc`` plot: the smallest validation loss for each number of parameters of an
+    ``arxstruc`` table, with the chosen (na, nb, label) models marked."""
+    axis = _axes(ax)
+    best = table.loc[table.groupby("n_params")["loss"].idxmin()]
+    axis.semilogy(best["n_params"], best["loss"], "o-", color="C0", markersize=4,
+                  label="best ARX per number of parameters")
+    for i, (na, nb, label) in enumerate(chosen):
+        row = table[(table["na"] == na) & (table["nb"] == nb)].iloc[0]
+        axis.semilogy([row["n_params"]], [row["loss"]], "s", markersize=9, markerfacecolor="none",
+                      color=f"C{i + 1}", label=f"{label}: na = {na}, nb = {nb}")
+    axis.set_xlabel("parameters (na + nb)")
+    axis.set_ylabel("validation loss (mean squared one-step error)")
+    axis.legend(loc="upper right", fontsize="small")
+    return axis.figure
+
+
 def plot_step(
     models,
     n: int | None = None,

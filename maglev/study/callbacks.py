@@ -26,7 +26,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import tracking
+from maglev.study import render, tracking
 from maglev.study.config import task_config
 
 log = logging.getLogger("maglev.study")
@@ -120,7 +120,9 @@ class SweepCallback(Callback):
             log.warning("lab steps failed: %s: %s", type(exc).__name__, exc)
             tracking.log_batch(self.client, self.parent, tags={"lab_error": f"{type(exc).__name__}: {exc}"})
             return
-        files = {f"lab/{k}": fig for k, fig in figures.items()}
+        from maglev.study.figures import png
+
+        files = {f"lab/{k}": png(fig) for k, fig in figures.items()}
         files["lab/lab.json"] = summary
         tracking.log_files(self.client, self.parent, files)
         tracking.log_batch(self.client, self.parent, metrics=metrics, tags={"lab_logged": "true"})
@@ -130,6 +132,7 @@ class SweepCallback(Callback):
         if self.parent is None:
             return
         atexit.unregister(self._abort)
+        render.drain()  # the last runs' figures: their runs are FINISHED once drawn
         kids = tracking.children(self.client, self.exp_id, self.parent)
         counts: dict[str, int] = {}
         for r in kids:
@@ -148,6 +151,7 @@ class SweepCallback(Callback):
         """atexit: the sweep did not reach on_multirun_end."""
         if self.parent is None:
             return
+        render.abandon()
         try:
             if self.fresh and not tracking.children(self.client, self.exp_id, self.parent):
                 self.client.delete_run(self.parent)
@@ -173,6 +177,7 @@ class RankingCallback(Callback):
         from maglev.study.store import SweepError
 
         HydraConfig.instance().set_config(config)
+        render.drain()  # Hydra ends callbacks in reverse order: this one runs before SweepCallback's end
         task = task_config(config)
         parent = tracking.sweep_parent(str(config.hydra.sweep.dir))
         if parent is None:

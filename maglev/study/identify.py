@@ -2,7 +2,7 @@
 
 No Hydra and no MLflow here.  :func:`identify` takes the resolved config as a plain
 dict (sections ``dataset``, ``structure``, ``study``, ``data_dir``) and returns the
-model, the scalar metrics, the residual analysis as JSON and the figures; the
+model, the scalar metrics, the residual analysis as JSON and what the figures show; the
 tracking layer logs them and :mod:`maglev.study.reproduce` recomputes them.  Everything but
 ``fit_seconds`` is a deterministic function of the config.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -25,13 +25,38 @@ from maglev.validate import ResidResult, compare, naive_fit, resid
 TIMING_METRICS = ("fit_seconds",)  # not reproducible; every other metric is
 
 
+@dataclass(frozen=True)
+class FigureInputs:
+    """Everything a run's figures show (:func:`maglev.study.figures.run_figures`); picklable, so that a
+    background process can draw them (:mod:`maglev.study.render`)."""
+
+    prepared: Prepared
+    model: PolyModel
+    resid: ResidResult
+    yhat: np.ndarray
+    ysim: np.ndarray
+    val_fit: float
+    val_fit_sim: float
+    horizon: int
+    jacobian: tuple | None = None  # (A, B, C, D, dt) of the small-signal Jacobian, simulated data only
+    bla: object = None  # maglev.bla.BLA of the dataset's input class, simulated data only
+
+    def true_system(self):
+        """The small-signal Jacobian as a python-control system (None for recorded data)."""
+        if self.jacobian is None:
+            return None
+        import control as ct
+
+        return ct.ss(*self.jacobian, name="small-signal Jacobian")
+
+
 @dataclass
 class RunOutput:
     model: PolyModel
     metrics: dict[str, float]
     resid: dict
     prepared: Prepared
-    figures: dict = field(default_factory=dict)  # artifact file name -> matplotlib Figure
+    figure_inputs: FigureInputs
 
 
 def orders_of(section: dict) -> list[int]:
@@ -49,7 +74,7 @@ def run_label(cfg: dict) -> str:
 
 
 @single_threaded_blas  # same numbers, bit for bit, whichever launcher or process runs it
-def identify(cfg: dict, figures: bool = True) -> RunOutput:
+def identify(cfg: dict) -> RunOutput:
     """Estimate the configured structure on the dataset's estimation part and validate it."""
     st, study = cfg["structure"], cfg["study"]
     prep = load(cfg["dataset"], cfg["data_dir"])
@@ -85,13 +110,10 @@ def identify(cfg: dict, figures: bool = True) -> RunOutput:
         metrics.update(true_distance(model, true_sys))
         ref = dataset_bla(cfg["dataset"])
         metrics.update(bla_distance(model, ref))
-    out = RunOutput(model=model, metrics={k: float(v) for k, v in metrics.items()},
-                    resid=rr.to_dict(), prepared=prep)
-    if figures:
-        from maglev.study.figures import run_figures
-
-        out.figures = run_figures(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, true_sys, horizon, ref)
-    return out
+    jacobian = None if true_sys is None else (true_sys.A, true_sys.B, true_sys.C, true_sys.D, true_sys.dt)
+    inputs = FigureInputs(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, horizon, jacobian, ref)
+    return RunOutput(model=model, metrics={k: float(v) for k, v in metrics.items()}, resid=rr.to_dict(),
+                     prepared=prep, figure_inputs=inputs)
 
 
 # ---------------------------------------------------------------------------- truth and data

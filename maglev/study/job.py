@@ -15,7 +15,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import tracking
+from maglev.study import render, tracking
 from maglev.study.config import check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
 
@@ -33,7 +33,8 @@ def hydra_context() -> dict:
         return {}
     multirun = hc.mode == RunMode.MULTIRUN
     return {"output_dir": hc.runtime.output_dir, "overrides": list(hc.overrides.task),
-            "sweep_dir": hc.sweep.dir if multirun else None, "job_num": hc.job.num if multirun else None}
+            "sweep_dir": hc.sweep.dir if multirun else None, "job_num": hc.job.num if multirun else None,
+            "launcher": str(hc.launcher.get("_target_", ""))}
 
 
 def progress(ctx: dict) -> str:
@@ -78,7 +79,7 @@ def run(cfg: DictConfig) -> float | None:
     run_id = run_info.run_id
     try:
         tracking.log_batch(client, run_id, params=flatten(plain))
-        out = identify(plain, figures=plain["tracking"]["log_figures"])
+        out = identify(plain)
         files = {"config/config.yaml": OmegaConf.to_yaml(OmegaConf.create(plain)),
                  "model/model.json": out.model.to_json(), "model/summary.txt": out.model.summary(),
                  "resid/resid.json": out.resid, "data/data.json": out.prepared.info()}
@@ -86,10 +87,14 @@ def run(cfg: DictConfig) -> float | None:
             hydra_dir = Path(ctx["output_dir"]) / ".hydra"
             for f in sorted(hydra_dir.glob("*.yaml")):
                 files[f"config/hydra/{f.name}"] = f
-        files.update({f"figures/{name}": fig for name, fig in out.figures.items()})
         tracking.log_files(client, run_id, files)
         tracking.log_batch(client, run_id, metrics=out.metrics)
-        client.set_terminated(run_id, "FINISHED")
+        if not plain["tracking"]["log_figures"]:
+            client.set_terminated(run_id, "FINISHED")
+        elif ctx.get("job_num") is not None and ctx["launcher"].endswith("BasicLauncher"):
+            render.submit(plain["tracking"]["uri"], run_id, out.figure_inputs)  # FINISHED once drawn
+        else:
+            render.draw_and_finish(plain["tracking"]["uri"], run_id, out.figure_inputs)
         log.info("%s: val_fit %.2f %%  (run %s)", label, out.metrics["val_fit"], run_id)
         return out.metrics["val_fit"]
     except BaseException as exc:  # noqa: BLE001 — record every way of dying

@@ -42,18 +42,39 @@ def lab_steps(cfg: dict) -> tuple[dict, dict, dict]:
     prep = load(cfg["dataset"], cfg["data_dir"])
     spec = output_spectrum(prep.data.y, float(lab["energy_fraction"]))
     alpha = choose_alpha(spec.band)
+    orders = order_selection(prep, int(lab["max_order"]), int(lab["max_delay"]))
     metrics = {
         "lab.u_min": wr.u_min, "lab.u_max": wr.u_max, "lab.u_star": wr.u_star, "lab.slope": wr.slope,
         "lab.rise_time_samples": rt.samples, "lab.rise_time_s": rt.seconds,
         "lab.Ts_min": rt.ts_range[0], "lab.Ts_max": rt.ts_range[1], "lab.decimation": rt.decimation,
         "lab.band_low": spec.band[0], "lab.band_high": spec.band[1], "lab.alpha_star": alpha.alpha_star,
+        **{f"lab.{k}": v for k, v in orders.items() if k != "table"},
     }
     from maglev.lab import plots
+    from maglev.plots import plot_arxstruc
 
     figures = {"working_region.png": plots.plot_working_region(wr), "rise_time.png": plots.plot_rise_time(rt),
-               "output_spectrum.png": plots.plot_output_spectrum(spec), "alpha.png": plots.plot_alpha(alpha)}
+               "output_spectrum.png": plots.plot_output_spectrum(spec), "alpha.png": plots.plot_alpha(alpha),
+               "orders.png": plot_arxstruc(orders["table"], [(orders["arx_na"], orders["arx_nb"], "AIC"),
+                                                            (orders["arx_na_mdl"], orders["arx_nb_mdl"], "MDL")])}
+    figures["orders.png"].axes[0].set_title(f"ARX orders on {prep.name} (nk = {orders['nk']} by delayest)",
+                                            fontsize="medium")
     figures["output_spectrum.png"].axes[0].set_title(f"Output spectrum of {prep.name}", fontsize="medium")
     summary = {"staircase": lab["staircase_file"] or "simulated working_region",
                "spectrum_dataset": prep.name, **metrics,
-               "alpha_shares": dict(zip(map(str, alpha.alphas), alpha.shares))}
+               "alpha_shares": dict(zip(map(str, alpha.alphas), alpha.shares)),
+               "arxstruc": orders["table"].to_dict(orient="records")}
     return metrics, figures, summary
+
+
+def order_selection(prep, max_order: int, max_delay: int) -> dict:
+    """MATLAB's order and delay selection on a dataset: ``delayest`` (ARX [2 2 nk], nk in 0..max_delay) on
+    the estimation part, then ``arxstruc`` (na, nb in 1..max_order, that nk; losses on the validation
+    part) and ``selstruc`` by AIC and by MDL: the orders the data suggest before any PEM model is fitted."""
+    from maglev.selection import arxstruc, delayest, selstruc
+
+    nk = delayest(prep.est, 2, 2, 0, max_delay)
+    table = arxstruc(prep.est, prep.val, range(1, max_order + 1), range(1, max_order + 1), nk)
+    na, nb, _ = selstruc(table, "aic")
+    na_mdl, nb_mdl, _ = selstruc(table, "mdl")
+    return {"nk": nk, "arx_na": na, "arx_nb": nb, "arx_na_mdl": na_mdl, "arx_nb_mdl": nb_mdl, "table": table}

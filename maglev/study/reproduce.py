@@ -39,7 +39,7 @@ def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool 
     now = tracking.git_info()["git_commit"]
     if commit and commit != now:
         print(f"note: run made at commit {commit[:10]}, this checkout is {now[:10]}", file=sys.stderr)
-    out = identify(cfg, figures=False)
+    out = identify(cfg)
     rows = []
     for key in sorted(run.data.metrics):
         if key in TIMING_METRICS:

@@ -127,6 +127,8 @@ class LabCfg:
     levels: int = 21  # number of staircase levels
     tail: float = 50.0  # percent of each level averaged as stationary
     energy_fraction: float = 0.8  # share of the output energy defining the band for alpha*
+    max_order: int = 8  # ARX order selection (arxstruc/selstruc): na, nb in 1..max_order
+    max_delay: int = 10  # delay estimation (delayest): nk in 0..max_delay
 
 
 @dataclass

@@ -151,8 +151,8 @@ def log_batch(client: MlflowClient, run_id: str, params: dict | None = None,
     )
 
 
-def log_files(client: MlflowClient, run_id: str, files: dict, dpi: int = 90) -> None:
-    """Upload ``{artifact path: content}`` in one call; content is str, bytes, dict (JSON), a Figure or a Path."""
+def log_files(client: MlflowClient, run_id: str, files: dict) -> None:
+    """Upload ``{artifact path: content}`` in one call; content is str, bytes (e.g. a PNG), dict (JSON) or a Path."""
     with tempfile.TemporaryDirectory(prefix="maglev-artifacts-") as tmp:
         for rel, content in files.items():
             path = Path(tmp) / rel
@@ -165,8 +165,8 @@ def log_files(client: MlflowClient, run_id: str, files: dict, dpi: int = 90) -> 
                 path.write_text(json.dumps(content, indent=1, default=str))
             elif isinstance(content, Path):
                 path.write_bytes(content.read_bytes())
-            else:  # a matplotlib Figure
-                content.savefig(path, dpi=dpi)
+            else:
+                raise TypeError(f"log_files: {rel}: expected str, bytes, dict or Path, got {type(content).__name__}")
         client.log_artifacts(run_id, tmp)
 
 

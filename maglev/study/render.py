@@ -1,0 +1,99 @@
+"""Draw a sweep's run figures in a background process, so the next run estimates while this one's render.
+
+A run's five figures cost far more than its estimation (matplotlib's text layout and
+rasterising) and no number depends on them.  In a sweep on the basic launcher, a job
+logs everything else, hands the figure inputs (:class:`maglev.study.identify.FigureInputs`)
+to one renderer process and returns; the renderer draws, uploads the PNGs and only then
+marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
+for it (:func:`drain`) before it counts the runs and the ranking reads them.  A single
+run, or a job in a joblib worker (already one of several processes), draws inline.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+
+log = logging.getLogger("maglev.study")
+
+_pool: ProcessPoolExecutor | None = None
+_pending: dict[str, tuple[str, Future]] = {}  # run id -> (tracking URI, its render)
+
+
+def draw_and_finish(uri: str, run_id: str, inputs) -> None:
+    """Draw the run's figures, upload them and mark the run FINISHED (a drawing error is tagged, not fatal:
+    the run's numbers are complete)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from mlflow import MlflowClient
+
+    from maglev.study import tracking
+    from maglev.study.figures import RUN_DPI, png, run_figures
+
+    client = MlflowClient(tracking_uri=uri)
+    try:
+        figures = run_figures(inputs)
+        tracking.log_files(client, run_id, {f"figures/{name}": png(fig, RUN_DPI) for name, fig in figures.items()})
+    except Exception as exc:  # noqa: BLE001 — a plotting bug must not lose a run
+        tracking.log_batch(client, run_id, tags={"figures_error": f"{type(exc).__name__}: {exc}"[:4000]})
+    client.set_terminated(run_id, "FINISHED")
+
+
+def submit(uri: str, run_id: str, inputs) -> None:
+    """Queue the run's figures on the background renderer (started on first use)."""
+    global _pool
+    for _ in range(2):
+        if _pool is None:
+            _pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+        try:
+            _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs))
+            return
+        except BrokenProcessPool:  # the renderer died earlier: start a new one
+            _pool = None
+    raise RuntimeError("the figure renderer cannot be started")
+
+
+def pending() -> list[str]:
+    """Run ids whose figures are not drawn yet."""
+    return [run_id for run_id, (_, fut) in _pending.items() if not fut.done()]
+
+
+def drain() -> dict[str, str]:
+    """Wait for every queued render; returns ``{run id: error}`` for runs the renderer could not finish
+    (its process died): those are marked FAILED with the error, never left RUNNING."""
+    failed = {}
+    for run_id, (uri, fut) in list(_pending.items()):
+        try:
+            fut.result()
+        except Exception as exc:  # noqa: BLE001 — e.g. BrokenProcessPool: the renderer died
+            failed[run_id] = f"{type(exc).__name__}: {exc}"
+            _fail(uri, run_id, failed[run_id])
+        _pending.pop(run_id, None)
+    return failed
+
+
+def abandon(status: str = "KILLED") -> list[str]:
+    """Stop the renderer without waiting (the sweep is dying): runs still queued get ``status``."""
+    global _pool
+    left = pending()
+    if _pool is not None:
+        _pool.shutdown(wait=False, cancel_futures=True)
+        _pool = None
+    for run_id in left:
+        _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status)
+    _pending.clear()
+    return left
+
+
+def _fail(uri: str, run_id: str, error: str, status: str = "FAILED") -> None:
+    from mlflow import MlflowClient
+
+    from maglev.study import tracking
+
+    client = MlflowClient(tracking_uri=uri)
+    tracking.log_batch(client, run_id, tags={"error": f"figures: {error}"[:4000]})
+    client.set_terminated(run_id, status)
+    log.error("run %s %s: figures not drawn: %s", run_id, status, error)

@@ -1,0 +1,48 @@
+"""The background renderer: a run is FINISHED only once its figures are up, and never left RUNNING."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import pytest
+
+from maglev.study import render, tracking
+
+pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
+
+
+@pytest.fixture
+def store(tmp_path):
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    client, exp = tracking.connect({"uri": uri, "experiment": "maglev", "artifact_location": str(tmp_path / "a")})
+    return uri, client, exp
+
+
+def test_a_drawing_error_is_tagged_and_the_run_still_finishes(store):
+    uri, client, exp = store
+    run = client.create_run(exp).info.run_id
+    render.submit(uri, run, inputs=None)  # nothing to draw: run_figures fails in the renderer
+    assert render.drain() == {}
+    got = client.get_run(run)
+    assert got.info.status == "FINISHED" and got.data.tags["figures_error"].startswith("AttributeError")
+
+
+def test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones(store):
+    uri, client, exp = store
+    first, second = (client.create_run(exp).info.run_id for _ in range(2))
+    render.submit(uri, first, inputs=None)
+    render.drain()
+    pid = next(iter(render._pool._processes))  # the renderer process, started by the first submit
+    render.submit(uri, second, inputs=None)
+    os.kill(pid, signal.SIGKILL)
+    failed = render.drain()
+    assert list(failed) == [second] and "BrokenProcessPool" in failed[second]
+    got = client.get_run(second)
+    assert got.info.status == "FAILED" and got.data.tags["error"].startswith("figures: BrokenProcessPool")
+    third = client.create_run(exp).info.run_id
+    render.submit(uri, third, inputs=None)  # the broken renderer is replaced
+    time.sleep(0.1)
+    assert render.abandon() in ([third], [])  # queued and not yet drawn: KILLED; or already done
+    assert client.get_run(third).info.status in ("KILLED", "FINISHED")
