@@ -118,3 +118,15 @@ def orders_figure(runs: pd.DataFrame) -> Figure:
             axes[i, j].set_xlabel("free parameters")
         axes[i, 0].legend(fontsize="x-small")
     return fig
+
+
+def preparation_figure(lin, blas: dict) -> Figure:
+    """|G| of the small-signal Jacobian (``lin``: :class:`maglev.plant.LinearModel`) and of the best linear
+    approximation of each input class (``blas``: dataset name → :class:`maglev.bla.BLA`)."""
+    curves = [ref.bounds(LEVEL, f"BLA, {name}") for name, ref in blas.items()]
+    import control as ct
+
+    jac = ct.ss(lin.sys_d.A, lin.sys_d.B, lin.sys_d.C, lin.sys_d.D, lin.sys_d.dt, name="small-signal Jacobian")
+    fig = plot_bode(curves or [jac], true_system=jac if curves else None)
+    fig.axes[0].set_title("Linearisation at the working point and best linear approximations", fontsize="medium")
+    return fig

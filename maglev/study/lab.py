@@ -77,4 +77,5 @@ def order_selection(prep, max_order: int, max_delay: int) -> dict:
     table = arxstruc(prep.est, prep.val, range(1, max_order + 1), range(1, max_order + 1), nk)
     na, nb, _ = selstruc(table, "aic")
     na_mdl, nb_mdl, _ = selstruc(table, "mdl")
-    return {"nk": nk, "arx_na": na, "arx_nb": nb, "arx_na_mdl": na_mdl, "arx_nb_mdl": nb_mdl, "table": table}
+    return {"nk": nk, "arx_na": na, "arx_nb": nb, "arx_na_mdl": na_mdl, "arx_nb_mdl": nb_mdl,
+            "max_order": max_order, "table": table}

@@ -19,7 +19,7 @@ import pytest
 from .harness import TINY, all_runs, launch
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
-SECTION_IDS = ("working-region", "inputs", "data", "structures", "top4", "binary-vs-uniform", "best-vs-worst")
+SECTION_IDS = ("cautions", "preparation", "working-region", "inputs", "data", "structures", "top4", "binary-vs-uniform", "best-vs-worst")
 
 
 @pytest.fixture(scope="module")
@@ -84,6 +84,16 @@ def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
     positions = [top.index(f"<b>{r.info.run_name}</b>: FIT {r.data.metrics['val_fit']:.2f} %") for r in order[:4]]
     assert positions == sorted(positions)
     assert "binary" in sections["binary-vs-uniform"] and "uniform" in sections["binary-vs-uniform"]
+    prep = sections["preparation"]
+    from maglev.plant import Levitator
+
+    lin = Levitator(zero_at_10=True).linearize(parent["lab.u_star"], Ts=m["Ts"])
+    assert f"static gain {lin.dc_gain:.3f} cm/A" in prep and f"Working point u* = {parent['lab.u_star']:.2f} A" in prep
+    assert "def get_average(" in prep and "def get_stationary_averages(" in prep
+    for name in ("uniform_narrow", "uniform_wide", "binary_a025"):
+        assert f"Best linear approximation for {name}" in prep
+    [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
+    assert sections["cautions"].count("<li>") == int(ranking.data.metrics["n_cautions"])
     bw = sections["best-vs-worst"]
     assert f"Best <b>{order[0].info.run_name}</b>" in bw and f"worst <b>{order[-1].info.run_name}</b>" in bw
     assert f"rank {len(order)}, FIT {order[-1].data.metrics['val_fit']:.2f} %" in bw
@@ -93,7 +103,7 @@ def test_report_is_self_contained(lab_sweep):
     _, reports, _ = lab_sweep
     page = (reports / "lab.html").read_text()
     srcs = re.findall(r"<img [^>]*src='([^']*)'", page)
-    assert len(srcs) == 9  # 4 lab steps, orders, binary vs uniform, 3 best vs worst
+    assert len(srcs) == 11  # preparation, 4 lab steps, order selection, orders, binary vs uniform, 3 best vs worst
     assert all(s.startswith("data:image/png;base64,") for s in srcs)
     assert "<link" not in page and "<script" not in page and "(figure" not in page  # no missing figures
 
@@ -128,4 +138,4 @@ def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tm
     title = re.search(r"<title>(.*?)</title>", proc.stdout)
     assert title, proc.stderr[-2000:]
     broken, total = map(int, re.fullmatch(r"broken=(\d+) total=(\d+)", title.group(1)).groups())
-    assert broken == 0 and total == 9
+    assert broken == 0 and total == 11

@@ -22,7 +22,7 @@ from maglev.study.report import sections as sec
 from maglev.study.store import SweepError, artifact_bytes, artifact_json, load_model, load_sweep
 from maglev.study.tracking import log_files
 
-LAB_FIGURES = ("working_region.png", "rise_time.png", "output_spectrum.png", "alpha.png")
+LAB_FIGURES = ("working_region.png", "rise_time.png", "output_spectrum.png", "alpha.png", "orders.png")
 CSS = """
 body{font-family:system-ui,sans-serif;max-width:1250px;margin:2em auto;padding:0 1em;color:#222;line-height:1.4}
 h1{font-size:1.6em} h2{border-bottom:2px solid #ccc;padding-bottom:.2em;margin-top:2em} h3{margin-bottom:.2em}
@@ -31,7 +31,7 @@ padding:2px 6px;text-align:right} table.t th{background:#f2f2f2} figure{margin:.
 img{max-width:100%} .row{display:flex;flex-wrap:wrap;gap:1em} .row figure{flex:1 1 45%}
 figcaption{font-size:.85em;color:#555} .missing{color:#a00} nav a{margin-right:1em} .meta{color:#555;font-size:.9em}
 """
-SECTIONS = [("cautions", "Cautions"), ("working-region", "Working region"), ("inputs", "Input signals"), ("data", "Data"),
+SECTIONS = [("cautions", "Cautions"), ("preparation", "Preparation tasks"), ("working-region", "Working region"), ("inputs", "Input signals"), ("data", "Data"),
             ("structures", "Structures and orders"), ("top4", "Top four"),
             ("binary-vs-uniform", "Binary vs uniform"), ("best-vs-worst", "Best vs worst")]
 
@@ -67,10 +67,11 @@ def build(ranking: Ranking, ranking_run: str) -> str:
             "<nav>" + "".join(f"<a href='#{a}'>{t}</a>" for a, t in SECTIONS) + "</nav>")
     body = [
         sec.cautions(ranking.cautions),
+        sec.preparation(lab, ts_used, ranking.configs, ranking.table),
         sec.working_region(lab, lab_png, ts_used),
         sec.input_signals(datasets, ranking.configs, lab, lab_png),
         sec.data_amounts(ranking.table, datasets, ranking.configs),
-        sec.structures(ranking.table, models),
+        sec.structures(ranking.table, models, lab, lab_png),
         sec.top_four(ranking),
         sec.binary_vs_uniform(ranking),
         sec.best_vs_worst(ranking, models),

@@ -166,9 +166,17 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict) -> str:
                    "<details><summary>Per model</summary>" + table(per_model) + "</details>")
 
 
-def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> str:
-    """``models``: run id -> PolyModel for every ranked run."""
+def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol: float = CANCEL_TOL) -> str:
+    """``models``: run id -> PolyModel for every ranked run; ``lab``: the sweep's lab steps (order selection)."""
     parts = []
+    if "lab.arx_na" in lab:
+        parts.append(para(
+            f"Before fitting: on {esc(lab.get('spectrum_dataset', 'the base dataset'))}, delayest (ARX [2 2 nk]) "
+            f"gives the delay nk = {int(lab['lab.nk'])} samples, and ARX order selection (arxstruc over na, nb "
+            f"in 1…{int(lab['lab.max_order'])}, selstruc) picks "
+            f"na = {int(lab['lab.arx_na'])}, nb = {int(lab['lab.arx_nb'])} by AIC and na = "
+            f"{int(lab['lab.arx_na_mdl'])}, nb = {int(lab['lab.arx_nb_mdl'])} by MDL.")
+            + img(lab_png.get("orders.png"), "ARX order selection (selstruc)"))
     for st in dict.fromkeys(table_["structure"]):
         runs = table_[table_["structure"] == st]
         rows, flagged = [], []
@@ -188,9 +196,13 @@ def structures(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> s
                   f"lowest for <b>{esc(best_aic)}</b> ({num(by_order.loc[best_aic, 'aic'])}) and mean validation "
                   f"FIT highest for <b>{esc(best_fit)}</b> ({num(by_order.loc[best_fit, 'fit'])} %); near pole-zero "
                   "cancellations per order: " + ", ".join(f"{esc(o)}: {n}" for o, n in n_cancel.items()) + ". ")
-        choice += ("Both criteria agree." if best_aic == best_fit else
-                   "The criteria disagree: the extra parameters improve the estimation fit more than the "
-                   "validation fit, or vice versa.")
+        if best_aic == best_fit:
+            choice += "Both criteria pick the same orders."
+        else:
+            choice += (f"The criteria disagree: {esc(best_fit)} validates "
+                       f"{num(by_order.loc[best_fit, 'fit'] - by_order.loc[best_aic, 'fit'])} FIT points "
+                       f"{'better' if by_order.loc[best_fit, 'fit'] >= by_order.loc[best_aic, 'fit'] else 'worse'} "
+                       f"than {esc(best_aic)}, which has the lower AIC.")
         if flagged:
             choice += " Near cancellations mean the order is higher than the data support."
         entry = get_structure(st)
@@ -307,3 +319,80 @@ def best_vs_worst(ranking, models_all: dict, tol: float = CANCEL_TOL) -> str:
                    + img(ranking.files.get("best_vs_worst/pzmap.png"), "pole-zero maps of G") + "</div>",
                    img(ranking.files.get("best_vs_worst/resid.png"),
                        "residual correlations, best (left) and worst (right)"))
+
+
+def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataFrame) -> str:
+    """The lab's preparation tasks (§4): the physical model, why it is nonlinear, its linearisation at the
+    sweep's working point beside the best linear approximations, the structure it suggests against what
+    identification found, and the code of ``get_average`` / ``get_stationary_averages``."""
+    import inspect
+
+    import control as ct
+
+    from maglev.lab import averages
+    from maglev.plant import Levitator
+    from maglev.study.datasets import dataset_bla
+    from maglev.study.figures import preparation_figure
+
+    lev = Levitator(zero_at_10=True)
+    p = lev.params
+    u_star = lab.get("lab.u_star")
+    Ts = ts_used[0] if ts_used else 0.001
+    model = [
+        "Two magnets on a glass rod, lower height z and upper height h (cm), mass m = "
+        f"{num(p.m, 3)} kg each; the coil current I acts on both. With the state x = (z, h, ż, ḣ):",
+        "m z̈ = I / (a (z + b)^n) − c / (h − z + d)^4 − m g − F_f(ż)   (coil push, repulsion, gravity, bushing friction)",
+        "m ḧ = −κ I / (a (h + b)^n) + c / (h − z + d)^4 − m g − F_f(ḣ)   (coil pull, repulsion, gravity, friction)",
+        "y = y_off + h (+ sensor noise, ADC quantisation); I = min(u, i_sat) (current regulator).",
+        f"Fitted to the rig (maglev calibrate): a = {num(p.a, 4)}, b = {num(p.b, 3)} cm, n = {num(p.n_coil, 3)}, "
+        f"κ = {num(p.kappa, 3)}, c = {num(p.c, 4)} N cm⁴, d = {num(p.d, 3)} cm, i_sat = {num(p.i_sat, 3)} A, "
+        f"y_off = {num(p.y_off, 3)} cm; friction F_f = Coulomb + Stribeck (regularised sign) + viscous, "
+        f"e.g. Coulomb {num(p.coulomb_upper, 3)} N on the upper magnet (docs/simulator.md).",
+    ]
+    nonlinear = ("It is nonlinear because the coil and repulsion forces fall off with a power of distance "
+                 f"(n = {num(p.n_coil, 3)} and 4), the bushings' dry friction holds small motions and releases "
+                 "large ones (the response depends on the input's amplitude), the lower magnet rests on its seat "
+                 f"below lift-off, the upper one hits a stop, and the regulator saturates at {num(p.i_sat, 3)} A.")
+    parts = [bullets(esc(t) for t in model), para(esc(nonlinear))]
+    if u_star is None:
+        return section("preparation", "Preparation tasks", *parts,
+                       para("No working point: the sweep's lab steps were not logged."))
+    lin = lev.linearize(float(u_star), Ts=Ts)
+    eq = lin.equilibrium
+    modes = "; ".join(f"ωn = {num(w, 1)} rad/s, ζ = {num(z, 3)}" for w, z in lin.modes())
+    poles = ", ".join(cz(complex(x)) for x in ct.poles(lin.sys_d))
+    zeros = ", ".join(cz(complex(x)) for x in ct.zeros(lin.sys_d)) or "none"
+    n_states = lin.sys_c.nstates
+    facts = [f"Working point u* = {num(u_star)} A: equilibrium z = {num(eq.z, 3)} cm, h = {num(eq.h, 3)} cm, "
+             f"y = {num(eq.y, 3)} cm{' (lower magnet seated)' if eq.lower_seated else ''}.",
+             f"Linearisation (small-signal Jacobian, {n_states} states): static gain {num(lin.dc_gain, 3)} cm/A; "
+             f"continuous modes {modes}. At Ts = {num(1000 * Ts, 2)} ms: poles {poles}; zeros {zeros}; "
+             f"{lin.delay_samples} sample(s) of pure delay beyond the logger's one-sample read-then-write lag."]
+    blas = {}
+    for name, c in configs.items():
+        if c["dataset"]["source"] == "sim":
+            b = dataset_bla(c["dataset"])
+            blas[name] = b
+            keep = b.w > 0
+            peak = int(np.argmax(np.abs(b.G[keep])))
+            facts.append(f"Best linear approximation for {esc(name)} ({esc(c['dataset']['input_class'])} input, "
+                         f"{num(c['dataset']['low'])}–{num(c['dataset']['high'])} A): gain {num(abs(b.G[keep][0]), 3)} "
+                         f"cm/A at {num(b.w[keep][0], 1)} rad/s, resonance peak {num(b.magnitude_db[keep][peak], 1)} dB "
+                         f"at {num(b.w[keep][peak], 1)} rad/s; simulation FIT ceiling {num(b.fit_ceiling, 1)} %.")
+    facts.append("The Jacobian is the model of infinitesimal motion, overdamped by the dry friction's slope at "
+                 "rest; the lab's inputs move the magnets far beyond that, so the identified models are compared "
+                 "with the best linear approximation of their input class, as in the figure below.")
+    best = table_.iloc[0]
+    suggestion = (f"The physical model suggests {n_states} poles in G (OE/BJ nf = {n_states}, ARX/ARMAX "
+                  f"na = {n_states}) and a delay of about {lin.delay_samples + 1} sample(s). ")
+    if "lab.arx_na" in lab:
+        suggestion += (f"ARX order selection on the data (arxstruc/selstruc, AIC) picked na = {int(lab['lab.arx_na'])}, "
+                       f"nb = {int(lab['lab.arx_nb'])} and delayest nk = {int(lab['lab.nk'])}. ")
+    suggestion += (f"Identification ranked {esc(best['name'])} first ({esc(best['structure'])} orders "
+                   f"{esc(best['orders'])}).")
+    fig = img(png(preparation_figure(lin, blas)), "small-signal Jacobian and best linear approximations")
+    code = "".join(f"<pre><code>{esc(inspect.getsource(f))}</code></pre>"
+                   for f in (averages.get_average, averages.get_stationary_averages))
+    return section("preparation", "Preparation tasks", *parts, bullets(facts), para(suggestion), fig,
+                   para("The code of the lab's getAverage and getStationaryAverages (maglev/lab/averages.py):"),
+                   code)
