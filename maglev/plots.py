@@ -31,7 +31,8 @@ from .models import PolyModel
 from .uncertainty import FrequencyBounds, frequency_bounds, root_regions, step_bounds, step_length
 from .validate import ResidResult
 
-N_FREQUENCIES = 500
+N_FREQUENCIES = 300
+MAX_POINTS = 2000  # samples drawn per line over a whole record (≈ 2 per pixel at the figures' size)
 DECADES = 3  # default Bode range: 10^-3 … 1 times the Nyquist frequency
 U_UNIT = "A"  # coil current
 Y_UNIT = "cm"  # upper magnet height as the rig's calibrated sensor reports it
@@ -105,7 +106,8 @@ def plot_compare(
     zoom = _window(data, window)
     ax_all, ax_zoom = _axes_pair(ax, "plot_compare", size=(8.0, 6.0))
     t = data.t
-    for axis, keep in ((ax_all, slice(None)), (ax_zoom, zoom)):
+    whole = slice(None, None, max(1, -(-data.N // MAX_POINTS)))  # the overview needs no more points than pixels
+    for axis, keep in ((ax_all, whole), (ax_zoom, zoom)):
         lines = [axis.plot(t[keep], p[keep], linewidth=1.0, color=f"C{i}", zorder=2)[0]
                  for i, p in enumerate(preds)]
         measured = axis.plot(t[keep], data.y[keep], **MEASURED)[0]

@@ -3,7 +3,7 @@
 A run's five figures cost far more than its estimation (matplotlib's text layout and
 rasterising) and no number depends on them.  In a sweep on the basic launcher, a job
 logs everything else, hands the figure inputs (:class:`maglev.study.identify.FigureInputs`)
-to one renderer process and returns; the renderer draws, uploads the PNGs and only then
+to the renderer (two processes) and returns; the renderer draws, uploads the PNGs and only then
 marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
 for it (:func:`drain`) before it counts the runs and the ranking reads them.  A single
 run, or a job in a joblib worker (already one of several processes), draws inline.
@@ -18,6 +18,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 log = logging.getLogger("maglev.study")
 
+WORKERS = 2  # drawing costs ≈ 3× a run's estimation: two renderers keep up on two cores
 _pool: ProcessPoolExecutor | None = None
 _pending: dict[str, tuple[str, Future]] = {}  # run id -> (tracking URI, its render)
 
@@ -47,7 +48,7 @@ def submit(uri: str, run_id: str, inputs) -> None:
     global _pool
     for _ in range(2):
         if _pool is None:
-            _pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"))
         try:
             _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs))
             return
