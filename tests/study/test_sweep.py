@@ -64,7 +64,7 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
         assert FIGURES | {"config/config.yaml", "config/hydra/config.yaml", "config/hydra/overrides.yaml",
                           "model/model.json", "resid/resid.json"} <= paths
         names.add(r.info.run_name)
-    assert "oe[2 2 2] · binary_a025" in names
+    assert "oe 2-2-2 · binary_a025" in names
 
 
 def test_sweep_logs_progress_as_jobs_done_of_total(sweep):
