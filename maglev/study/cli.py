@@ -41,12 +41,16 @@ def _uri(a: argparse.Namespace) -> str:
 
 
 def _rank(a: argparse.Namespace) -> int:
-    from maglev.study.ranking import compute, ranking_run, top_text, ui_hint
+    from maglev.study.ranking import compute, log_ranking, previous_ranking_run, top_text, ui_hint
     from maglev.study.store import load_sweep
 
     sweep = load_sweep(_uri(a), a.experiment, a.parent)
-    ranking = compute(sweep, a.structure)
-    run_id, reused = ranking_run(ranking, force=a.force)
+    ranking = compute(sweep, a.structure, draw=False)
+    run_id = None if a.force else previous_ranking_run(ranking)
+    reused = run_id is not None
+    if not reused:
+        ranking = compute(sweep, a.structure)
+        run_id = log_ranking(ranking)
     print(top_text(ranking))
     for note in ranking.notes:
         print(f"  note: {note}")

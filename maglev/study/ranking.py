@@ -161,8 +161,10 @@ def run_resid(sweep: Sweep, row: pd.Series, model):
     return resid(prep.val, model, lags=int(cfg["study"]["resid_lags"]))
 
 
-def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> Ranking:
-    """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures."""
+def compute(sweep: Sweep, structure: str | None = None, common: bool = True, draw: bool = True) -> Ranking:
+    """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures; with
+    ``draw=False`` only the table, the comparison's choice and the cautions (enough for :func:`top_text`
+    and :func:`previous_ranking_run`)."""
     from maglev.study.figures import best_worst_figures, comparison_figure, png
 
     table = rank_table(sweep.runs)
@@ -171,6 +173,9 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> 
     if chosen is None:
         notes.append("no structure has both binary- and uniform-input runs: no binary vs uniform comparison")
     comp = comparison_table(table, chosen) if chosen else None
+    if not draw:
+        return Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=None, models={},
+                       configs={}, resids={}, notes=notes, cautions=sweep_cautions(sweep, table, comp))
     wanted = [table.iloc[0], table.iloc[-1]] + ([r for _, r in comp.iterrows()] if comp is not None else [])
     models = {r["run_id"]: load_model(sweep.client, r["run_id"]) for r in wanted}
     best, worst = table.iloc[0], table.iloc[-1]
@@ -266,16 +271,16 @@ def top_text(r: Ranking) -> str:
 
 
 # ---------------------------------------------------------------------------- the ranking run
-def log_ranking(r: Ranking, entry: str = "maglev rank") -> str:
-    """Log the ranking as a new FINISHED run (``kind=ranking``); tag the parent with its id and describe
-    both; return the id.  ``entry``: the command shown as the run's source."""
+def log_ranking(r: Ranking) -> str:
+    """Log the ranking as a new FINISHED run (``kind=ranking``, source ``maglev rank``, which the end-of-sweep
+    ranking runs as well); tag the parent with its id and describe both; return the id."""
     from maglev.study import tracking
 
     client = r.sweep.client
     tags = {"kind": "ranking", "sweep": r.sweep.name, "sweep_parent": r.sweep.parent_id,
             "best_run": r.best["run_id"], "worst_run": r.worst["run_id"], "best_run_name": r.best["name"],
             "worst_run_name": r.worst["name"], "compared_structure": r.structure or "",
-            "ranked_hash": r.ranked_hash, **tracking.process_tags(), **tracking.source_tags(entry)}
+            "ranked_hash": r.ranked_hash, **tracking.process_tags(), **tracking.source_tags("maglev rank")}
     run_id = client.create_run(r.sweep.experiment_id, run_name=f"ranking · {r.sweep.name}", tags=tags).info.run_id
     metrics = {"n_ranked": len(r.table), "best_val_fit": r.best["val_fit"], "worst_val_fit": r.worst["val_fit"],
                "n_cautions": len(r.cautions)}
@@ -297,12 +302,6 @@ def previous_ranking_run(r: Ranking) -> str | None:
         filter_string=(f"tags.kind = 'ranking' and tags.sweep_parent = '{sweep.parent_id}' "
                        f"and tags.ranked_hash = '{r.ranked_hash}' and attributes.status = 'FINISHED'"))
     return found[0].info.run_id if found else None
-
-
-def ranking_run(r: Ranking, force: bool = False, entry: str = "maglev rank") -> tuple[str, bool]:
-    """(run id, reused?): the ranking run that ranked exactly these runs, else (or with ``force``) a new one."""
-    previous = None if force else previous_ranking_run(r)
-    return (previous, True) if previous else (log_ranking(r, entry), False)
 
 
 # ---------------------------------------------------------------------------- descriptions
@@ -346,7 +345,10 @@ def ranking_description(r: Ranking, run_id: str) -> str:
 
 
 def swept(kids: list) -> str:
-    """What a sweep varied, from its model runs' tags: datasets, structures, largest polynomial orders."""
+    """What a sweep varied, from its model runs' tags: datasets, structures, largest polynomial orders (each in
+    the order the runs started)."""
+    kids = sorted(kids, key=lambda r: r.info.start_time)
+
     def values(tag: str) -> list[str]:
         return list(dict.fromkeys(r.data.tags.get(tag, "?") for r in kids))
 

@@ -93,28 +93,29 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
 EXPERIMENT_KIND = "custom_model_development"  # MLflow 3: "model training", not GenAI (mlflow.experimentKind)
 NOTE = "mlflow.note.content"  # a run's or experiment's description (Markdown), shown by the UI
 SHARE_KEY = "maglev"  # the runs table's shared view: experiment tag mlflow.sharedViewState.<key>
-# the metrics a user compares first, also logged under a common prefix so that they sort and filter together
-# (``key.<name>`` = the schema's metric on the right; the schema's names stay the contract)
-KEY_METRICS = {"key.val_fit": "val_fit", "key.sim_fit": "val_fit_sim", "key.naive_fit": "val_fit_naive",
-               "key.whiteness_p": "whiteness_pvalue", "key.independence_p": "independence_pvalue",
-               "key.n_params": "n_params"}
+# the metrics a user compares first, also logged under a common prefix so that they sort and filter together,
+# rounded to what the table can show (``key.<name>``: (the schema's metric, decimals); the schema's names and
+# full values stay the contract)
+KEY_METRICS = {"key.val_fit": ("val_fit", 2), "key.sim_fit": ("val_fit_sim", 2),
+               "key.naive_fit": ("val_fit_naive", 2), "key.white_p": ("whiteness_pvalue", 4),
+               "key.indep_p": ("independence_pvalue", 4), "key.n_params": ("n_params", 0)}
 UI_PARAMS = "workflowType=machine_learning"  # the UI's query parameter for model-training mode
 
 
 def key_metrics(metrics: dict) -> dict:
-    """The ``key.*`` copies of a run's metrics (those it has)."""
-    return {k: metrics[m] for k, m in KEY_METRICS.items() if m in metrics}
+    """The ``key.*`` copies of a run's metrics (those it has), rounded."""
+    return {k: round(float(metrics[m]), digits) for k, (m, digits) in KEY_METRICS.items() if m in metrics}
 
 
 def shared_view(search_filter: str | None = None) -> dict:
     """The runs table as the UI restores it from ``?viewStateShareKey=``: the key metrics first, sorted by
-    ``key.val_fit``, the run name wide enough for ``bj 3-3-3-3-2 · real_binary_signal_2``."""
+    ``key.val_fit``, the run name wide enough for ``armax 3-3-3-2 · real_binary_signal_2``."""
     metrics = [f"metrics.`{k}`" for k in KEY_METRICS]
     attrs = ["attributes.`Dataset`", "attributes.`Description`", "attributes.`Source`"]
-    view = {"selectedColumns": metrics + ["tags.`sweep`"] + attrs,
-            "columnOrder": ["attributes.`Run Name`", *metrics, "tags.`sweep`", *attrs],
-            "columnWidths": {"attributes.`Run Name`": 290, "attributes.`Dataset`": 260,
-                             "attributes.`Description`": 420},
+    view = {"selectedColumns": metrics + attrs,
+            "columnOrder": ["attributes.`Run Name`", *metrics, *attrs],
+            "columnWidths": {"attributes.`Run Name`": 270, "attributes.`Dataset`": 250,
+                             "attributes.`Description`": 400},
             "orderByKey": "metrics.`key.val_fit`", "orderByAsc": False}
     if search_filter:
         view["searchFilter"] = search_filter
@@ -138,8 +139,9 @@ magnet height in cm), one run per dataset × structure × orders.
 - `kind=sweep` runs: a sweep's parent, with the lab-level steps and the top four.
 - `kind=ranking` runs: a sweep's ranking, its comparisons and the lab report.
 
-Columns `key.*`: one-step validation FIT %, simulation FIT %, the naive y(t-1) FIT %, the whiteness and \
-independence p-values (pass at p ≥ 0.01) and the number of parameters. `maglev ui` opens this table with them.
+Columns `key.*` (rounded copies of the run's metrics): one-step validation FIT %, simulation FIT %, the naive \
+y(t-1) FIT %, the whiteness and independence p-values (pass at p ≥ 0.01) and the number of parameters. \
+`maglev ui` opens this table with them.
 """
 
 

@@ -101,6 +101,50 @@ def test_model_and_resid_artifacts_are_loadable(sweep):
     assert res["whiteness_pvalue"] == r.data.metrics["whiteness_pvalue"]
 
 
+def test_runs_explain_themselves_in_the_ui(sweep):
+    """Dataset inputs, descriptions, source, key.* columns and readable names on every model run; the
+    parent described; the experiment tagged for the UI's model-training mode with its shared view."""
+    from maglev.study.datasets import load
+    from maglev.study.store import run_config
+    from maglev.study.tracking import SHARE_KEY, data_digest
+
+    store, _, _ = sweep
+    client, exp_id, runs = all_runs(store)
+    tags = client.get_experiment(exp_id).tags
+    assert tags["mlflow.experimentKind"] == "custom_model_development"
+    view = json.loads(tags[f"mlflow.sharedViewState.{SHARE_KEY}"])
+    assert view["orderByKey"] == "metrics.`key.val_fit`" and not view["orderByAsc"]
+    for r in (r for r in runs if r.data.tags.get("kind") == "model"):
+        t, m = r.data.tags, r.data.metrics
+        prep = load(run_config(client, r.info.run_id)["dataset"], "")
+        inputs = {i.tags[0].value: i.dataset for i in r.inputs.dataset_inputs}
+        assert set(inputs) == {"estimation", "validation"}
+        for context, part in (("estimation", prep.est), ("validation", prep.val)):
+            ds = inputs[context]
+            assert (ds.name, ds.digest) == (part.name, data_digest(part))
+            profile = json.loads(ds.profile)
+            assert (profile["num_rows"], profile["u_unit"], profile["y_unit"]) == (part.N, "A", "cm")
+        assert inputs["validation"].name == t["val_dataset"] and prep.val.N == m["n_val"]
+        note = t["mlflow.note.content"]
+        assert note.startswith(f"{t['structure'].upper()} {t['orders']} on {t['dataset']}: 1-step validation FIT "
+                               f"{m['val_fit']:.2f} %")
+        assert ("Residuals white" if m["whiteness_pass"] else "Residuals not white") in note
+        assert t["mlflow.source.name"] == "study.py" and t["mlflow.source.git.commit"] == t["git_commit"]
+        assert {k: v for k, v in m.items() if k.startswith("key.")} == {  # the columns compared first, rounded
+            "key.val_fit": round(m["val_fit"], 2), "key.sim_fit": round(m["val_fit_sim"], 2),
+            "key.naive_fit": round(m["val_fit_naive"], 2), "key.white_p": round(m["whiteness_pvalue"], 4),
+            "key.indep_p": round(m["independence_pvalue"], 4), "key.n_params": 4}
+        structure, orders, _, dataset = r.info.run_name.split(" ")
+        assert (structure, orders.split("-"), dataset) == (t["structure"], t["orders"].strip("[]").split(),
+                                                          t["dataset"])
+        assert len(r.info.run_name) <= 26
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    assert parent.data.tags["mlflow.note.content"].startswith(
+        "Sweep tiny: 4 model runs (4 FINISHED) of 2 dataset(s) (uniform_narrow, binary_a025) × 2 structure(s) "
+        "(arx, oe) × orders 2.")
+    assert "Not ranked yet" in parent.data.tags["mlflow.note.content"]
+
+
 def test_reproduce_gives_identical_metrics(sweep, capsys):
     from maglev.study.cli import main
 
@@ -122,7 +166,13 @@ def test_relaunch_runs_nothing_new_and_reaps_stale_runs(sweep):
                                                               "pid": str(dead.pid)}).info.run_id
     with study_log() as lines:
         launch(store, *args)
-    assert sum(m.startswith("skip ") for m in lines) == 4
+    skips = [m for m in lines if m.startswith("skip ")]
+    assert len(skips) == 4
+    names = {r.info.run_id: r.info.run_name for r in before if r.data.tags.get("kind") == "model"}
+    for line in skips:  # which run holds the config, and how to run it anyway
+        run_id = next(i for i in names if i in line)
+        assert f"{names[run_id]!r} ({run_id}) already holds this config" in line
+        assert line.endswith("to run it again add study.skip_finished=false")
     client, _, after = all_runs(store)
     assert client.get_run(stale).info.status == "KILLED"
     finished = lambda runs: sorted(r.info.run_id for r in runs if r.data.tags.get("kind") == "model"  # noqa: E731

@@ -17,7 +17,7 @@ import html
 from pathlib import Path
 
 from maglev.paths import reports_dir
-from maglev.study.ranking import Ranking, compute, ranking_run, top_text, ui_hint
+from maglev.study.ranking import Ranking, compute, log_ranking, previous_ranking_run, top_text, ui_hint
 from maglev.study.report import sections as sec
 from maglev.study.store import SweepError, artifact_bytes, artifact_json, load_model, load_sweep
 from maglev.study.tracking import log_files
@@ -96,7 +96,7 @@ def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = No
 
 def ranking_run_for(ranking: Ranking) -> str:
     """The latest ranking run of the sweep that ranked exactly these runs; a new one if there is none."""
-    return ranking_run(ranking)[0]
+    return previous_ranking_run(ranking) or log_ranking(ranking)
 
 
 def rank_and_report(uri: str, experiment: str, parent: str | None, structure: str | None = None,
