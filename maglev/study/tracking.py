@@ -109,14 +109,15 @@ def key_metrics(metrics: dict) -> dict:
 
 def shared_view(search_filter: str | None = None) -> dict:
     """The runs table as the UI restores it from ``?viewStateShareKey=``: the key metrics first, sorted by
-    ``key.val_fit``, the run name wide enough for ``armax 3-3-3-2 · real_binary_signal_2``."""
+    ``val_fit`` (unrounded, so in the ranking's order), the run name wide enough for
+    ``armax 3-3-3-2 · real_binary_signal_2``."""
     metrics = [f"metrics.`{k}`" for k in KEY_METRICS]
     attrs = ["attributes.`Dataset`", "attributes.`Description`", "attributes.`Source`"]
     view = {"selectedColumns": metrics + attrs,
             "columnOrder": ["attributes.`Run Name`", *metrics, *attrs],
-            "columnWidths": {"attributes.`Run Name`": 270, "attributes.`Dataset`": 250,
+            "columnWidths": {"attributes.`Run Name`": 240, "attributes.`Dataset`": 240,
                              "attributes.`Description`": 400},
-            "orderByKey": "metrics.`key.val_fit`", "orderByAsc": False}
+            "orderByKey": "metrics.`val_fit`", "orderByAsc": False}
     if search_filter:
         view["searchFilter"] = search_filter
     return view

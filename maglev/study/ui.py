@@ -9,7 +9,7 @@ The URL printed opens the runs table in "model training" mode (the query paramet
 ``workflowType=machine_learning``: MLflow 3.17 ignores the experiment's
 ``mlflow.experimentKind`` tag) with a shared view (``viewStateShareKey``, an experiment
 tag ``mlflow.sharedViewState.<key>``): the latest sweep's runs, the ``key.*`` metrics as
-the first columns, sorted by ``key.val_fit``.
+the first columns, sorted by ``val_fit``.
 """
 
 from __future__ import annotations
@@ -89,7 +89,7 @@ def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) 
     base = f"http://{host}:{port}"
     url = landing_url(base, uri, experiment)
     env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
-    proc = subprocess.Popen(server_command(uri, host, port), env=env)
+    proc = subprocess.Popen(server_command(uri, host, port), env=env, stdout=2)  # stdout: only the URL
     try:
         if not wait_healthy(base, proc):
             proc.terminate()

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
+import urllib.request
+from pathlib import Path
 
 import pytest
 
-from .harness import TINY, all_runs, artifact_paths, launch, study_log
+from .harness import REPO, TINY, all_runs, artifact_paths, launch, study_log
 
 FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png", "figures/step.png"}
 
@@ -113,7 +116,7 @@ def test_runs_explain_themselves_in_the_ui(sweep):
     tags = client.get_experiment(exp_id).tags
     assert tags["mlflow.experimentKind"] == "custom_model_development"
     view = json.loads(tags[f"mlflow.sharedViewState.{SHARE_KEY}"])
-    assert view["orderByKey"] == "metrics.`key.val_fit`" and not view["orderByAsc"]
+    assert view["orderByKey"] == "metrics.`val_fit`" and not view["orderByAsc"]
     for r in (r for r in runs if r.data.tags.get("kind") == "model"):
         t, m = r.data.tags, r.data.metrics
         prep = load(run_config(client, r.info.run_id)["dataset"], "")
@@ -143,6 +146,62 @@ def test_runs_explain_themselves_in_the_ui(sweep):
         "Sweep tiny: 4 model runs (4 FINISHED) of 2 dataset(s) (uniform_narrow, binary_a025) × 2 structure(s) "
         "(arx, oe) × orders 2.")
     assert "Not ranked yet" in parent.data.tags["mlflow.note.content"]
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (Linux /proc)."""
+    kids = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        kids.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        for child in kids.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_maglev_ui_serves_the_store_lightly_opened_on_the_sweep_in_model_training_mode(sweep, tmp_path):
+    store, _, _ = sweep
+    uri = f"sqlite:///{store}/mlflow.db"
+    _, exp, _ = all_runs(store)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
+    with open(tmp_path / "ui.err", "w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "maglev", "ui", "--tracking-uri", uri, "--port", str(port)],
+                                stdout=subprocess.PIPE, stderr=err, text=True, cwd=REPO, env=env)
+    try:
+        line = proc.stdout.readline()  # printed once the server answers /health
+        base = f"http://127.0.0.1:{port}"
+        assert line.startswith(f"MLflow UI: {base}/#/experiments/{exp}/runs?workflowType=machine_learning"
+                               "&viewStateShareKey=sweep-tiny "), (line, (tmp_path / "ui.err").read_text()[-3000:])
+        server = descendants(proc.pid)
+        assert 1 <= len(server) <= 3  # one web worker, no job runner (the default starts 15 processes)
+        url = f"{base}/api/2.0/mlflow/experiments/get-by-name?experiment_name=maglev"
+        with urllib.request.urlopen(url, timeout=30) as r:
+            tags = {t["key"]: t["value"] for t in json.load(r)["experiment"]["tags"]}
+        assert tags["mlflow.experimentKind"] == "custom_model_development"
+        view = json.loads(tags["mlflow.sharedViewState.sweep-tiny"])  # the view the printed URL opens
+        assert view["searchFilter"] == "tags.sweep = 'tiny'" and view["orderByKey"] == "metrics.`val_fit`"
+        assert view["selectedColumns"][0] == "metrics.`key.val_fit`" and "attributes.`Dataset`" in view["selectedColumns"]
+    finally:
+        server = descendants(proc.pid)
+        proc.send_signal(signal.SIGINT)  # Ctrl-C: maglev ui stops its server
+        code = proc.wait(timeout=60)
+    assert code == 0 and not [pid for pid in server if alive(pid)]
 
 
 def test_reproduce_gives_identical_metrics(sweep, capsys):
