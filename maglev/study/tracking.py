@@ -91,7 +91,7 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
 
 # ---------------------------------------------------------------------------- how the UI shows the study
 EXPERIMENT_KIND = "custom_model_development"  # MLflow 3: "model training", not GenAI (mlflow.experimentKind)
-NOTE = "mlflow.note.content"  # a run's or experiment's description (Markdown), shown by the UI
+NOTE = "mlflow.note.content"  # a run's or experiment's description (Markdown; the table shows its start raw)
 SHARE_KEY = "maglev"  # the runs table's shared view: experiment tag mlflow.sharedViewState.<key>
 # the metrics a user compares first, also logged under a common prefix so that they sort and filter together,
 # rounded to what the table can show (``key.<name>``: (the schema's metric, decimals); the schema's names and
@@ -170,11 +170,6 @@ def source_tags(entry: str) -> dict[str, str]:
         user = "unknown"
     return {"mlflow.source.name": entry, "mlflow.source.type": "LOCAL",
             "mlflow.source.git.commit": git_info()["git_commit"], "mlflow.user": user}
-
-
-def describe(client: MlflowClient, run_id: str, markdown: str) -> None:
-    """Set a run's description (Markdown; start with a plain sentence: the table shows it raw)."""
-    client.set_tag(run_id, NOTE, markdown)
 
 
 # ---------------------------------------------------------------------------- dataset inputs

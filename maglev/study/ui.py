@@ -87,17 +87,20 @@ def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) 
               "or pass --tracking-uri", file=sys.stderr)
         return 2
     base = f"http://{host}:{port}"
-    url = landing_url(base, uri, experiment)
     env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
     proc = subprocess.Popen(server_command(uri, host, port), env=env, stdout=2)  # stdout: only the URL
     try:
+        url = landing_url(base, uri, experiment)  # while the server starts
         if not wait_healthy(base, proc):
-            proc.terminate()
-            print(f"maglev ui: the MLflow server on {base} did not start (exit {proc.poll()})", file=sys.stderr)
+            why = (f"exited with status {proc.poll()}" if proc.poll() is not None
+                   else f"did not answer within {HEALTH_TIMEOUT_S:g} s")
+            print(f"maglev ui: the MLflow server on {base} {why}", file=sys.stderr)
             return 2
         print(f"MLflow UI: {url}   (Ctrl-C stops it)", flush=True)
         return proc.wait()
     except KeyboardInterrupt:
-        proc.terminate()
-        proc.wait(timeout=20)
         return 0
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            proc.wait(timeout=20)
