@@ -115,7 +115,7 @@ def shared_view(search_filter: str | None = None) -> dict:
     attrs = ["attributes.`Dataset`", "attributes.`Description`", "attributes.`Source`"]
     view = {"selectedColumns": metrics + attrs,
             "columnOrder": ["attributes.`Run Name`", *metrics, *attrs],
-            "columnWidths": {"attributes.`Run Name`": 240, "attributes.`Dataset`": 240,
+            "columnWidths": {"attributes.`Run Name`": 290, "attributes.`Dataset`": 240,
                              "attributes.`Description`": 400},
             "orderByKey": "metrics.`val_fit`", "orderByAsc": False}
     if search_filter:
