@@ -139,6 +139,9 @@ class SweepCallback(Callback):
             counts[r.info.status] = counts.get(r.info.status, 0) + 1
         tracking.log_batch(self.client, self.parent,
                            metrics={f"runs_{s.lower()}": n for s, n in counts.items()})
+        from maglev.study.ranking import describe_sweep
+
+        describe_sweep(self.client, self.parent)  # what was swept, the top four and cautions if ranked
         self.client.set_terminated(self.parent, "FINISHED")
         os.environ.pop(tracking.PARENT_ENV, None)
         os.environ.pop(tracking.SIZE_ENV, None)
