@@ -93,7 +93,7 @@ def stabilize(p: np.ndarray) -> np.ndarray:
     of the rounded coefficients at or beyond 1.
     """
     p = np.asarray(p, dtype=float)
-    if len(p) <= 1 or _inside(p, MAX_RADIUS):
+    if len(p) <= 1 or roots_within(p, MAX_RADIUS):
         return p.copy()
     roots = np.roots(p)
     outside = np.abs(roots) > 1.0
@@ -105,7 +105,7 @@ def stabilize(p: np.ndarray) -> np.ndarray:
     return q * (p[0] / q[0])
 
 
-def _inside(p: np.ndarray, radius: float) -> bool:
+def roots_within(p: np.ndarray, radius: float) -> bool:
     """All roots of monic ``p`` within ``radius``: Jury's conditions up to degree 2, else roots."""
     if p[0] != 1.0 or len(p) > 3:
         return bool(np.all(np.abs(np.roots(p)) <= radius))
