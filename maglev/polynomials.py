@@ -106,13 +106,23 @@ def stabilize(p: np.ndarray) -> np.ndarray:
 
 
 def roots_within(p: np.ndarray, radius: float) -> bool:
-    """All roots of monic ``p`` within ``radius``: Jury's conditions up to degree 2, else roots."""
-    if p[0] != 1.0 or len(p) > 3:
+    """All roots of monic ``p`` within ``radius``: Jury's conditions up to degree 2, else the
+    Schur–Cohn step-down recursion (reflection coefficients of magnitude below 1), which
+    needs no eigenvalues."""
+    if p[0] != 1.0:
         return bool(np.all(np.abs(np.roots(p)) <= radius))
     if len(p) == 2:
         return abs(p[1]) <= radius
-    a1, a2 = p[1] / radius, p[2] / radius**2  # roots of z² + a1 z + a2 scaled by 1/radius
-    return abs(a2) <= 1.0 and abs(a1) <= 1.0 + a2
+    if len(p) == 3:
+        a1, a2 = p[1] / radius, p[2] / radius**2  # roots of z² + a1 z + a2 scaled by 1/radius
+        return abs(a2) <= 1.0 and abs(a1) <= 1.0 + a2
+    a = np.asarray(p, dtype=float) / radius ** np.arange(len(p))
+    for m in range(len(a) - 1, 0, -1):
+        k = a[m]
+        if abs(k) >= 1.0:
+            return False
+        a = (a[:m] - k * a[m:0:-1]) / (1.0 - k * k)
+    return True
 
 
 def _pad(p: np.ndarray, n: int) -> np.ndarray:

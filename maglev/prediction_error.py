@@ -8,9 +8,10 @@ five ``lfilter`` calls regardless of the order:
     ∂e/∂c_i = −q⁻ⁱ e / C          ∂e/∂d_i =  q⁻ⁱ v / C   (v = A y − B/F u)
     ∂e/∂f_i =  q⁻ⁱ D/(C F) w      (w = B/F u)
 
-Each iteration takes a QR factorisation of the Jacobian and solves the damped
-Gauss–Newton step on the small triangular system, so retries with a larger damping
-cost nothing extra.  C, D and F are kept stable by reflecting roots that leave the
+Each iteration takes the triangular factor of the Jacobian (through its Gram matrix,
+or a QR factorisation when it is ill-conditioned) and solves the damped Gauss–Newton
+step on the small triangular system, so retries with a larger damping cost nothing
+extra.  C, D and F are kept stable by reflecting roots that leave the
 unit circle.  With ``initial_condition="estimate"`` the initial state (the
 polynomial z of the zero-input response z/(C F) δ) is fitted by least squares at
 every evaluation and the Jacobian is projected on the complement of the state
@@ -32,7 +33,9 @@ from .threads import single_threaded_blas
 MAX_RETRIES = 10  # damping grows ×2, ×4, ×8 … per failed try: past 1e5 × diag(JᵀJ) after ten
 NEGLIGIBLE = 1e3  # expected improvements below 1e3 × tolerance count as converged at a stall
 PATIENCE = 8  # iterations a secondary start gets before it must beat the best minimum
+STALL = 5  # iterations that together gain less than the tolerance end the search
 SAME_MINIMUM = 1e-3  # relative parameter distance at which two runs share a minimum
+GRAM_CONDITION = 1e4  # Jacobians better conditioned than this are factored through their Gram matrix
 NEAR_BOUNDARY = 0.999  # roots this close to the unit circle are held there when a step pushes them out
 ONE = np.ones(1)
 
@@ -187,7 +190,9 @@ def minimise(
 
     The default tolerance is ``1e-3 · d / N``: the loss of a fitted model fluctuates
     by about d/N relative between data sets, so improvements a thousand times
-    smaller than that change nothing a user can see.  When a step would push a root
+    smaller than that change nothing a user can see.  The search also ends when an
+    undamped step gains less than that (converged), or ``STALL`` damped steps together
+    do (stalled).  When a step would push a root
     of C, D or F out of the unit circle, the step is taken with those roots held
     where they are (on the stability boundary) and the other parameters free, so the
     search goes on along the boundary instead of stalling against the reflection.
@@ -205,6 +210,7 @@ def minimise(
     lam, nu = 0.0, 2.0  # Nielsen's damping update; lam = 0 is a plain Gauss-Newton step
     termination = "maximum number of iterations reached"
     previous_loss = np.inf
+    history = [current.loss]  # losses of the accepted points
     r = None
     iterations = 0
     for iterations in range(1, max_iterations + 1):
@@ -258,8 +264,15 @@ def minimise(
         relative = (current.loss - accepted.loss) / current.loss
         undamped = lam == 0.0
         previous_loss, current = current.loss, accepted
+        history.append(current.loss)
         if undamped and relative < tolerance:
             termination = "relative improvement below tolerance"
+            r = None
+            break
+        if len(history) > STALL and history[-1 - STALL] - current.loss < tolerance * current.loss:
+            # damped steps crawling along a flat valley: stop, but not as converged (other
+            # starts are then not abandoned against this one)
+            termination = f"stalled: relative improvement over the last {STALL} iterations below tolerance"
             r = None
             break
     else:
@@ -270,10 +283,29 @@ def minimise(
 
 
 def _factor(spec: PolySpec, ev: Evaluation, y, u, buffer: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """R and Qᵀe of [J e] = QR, with J built in ``buffer`` and factored there."""
+    """R and Qᵀe of [J e] = QR, with J built in ``buffer``.
+
+    The triangular factor of [J e] is that of its Gram matrix, so it comes from a
+    Cholesky factorisation of the (p+1)² Gram matrix (columns scaled to unit norm),
+    a third of the work of a Householder QR of the N × (p+1) matrix.  Squaring the
+    condition number costs accuracy, so when the factor's diagonal spans more than
+    ``GRAM_CONDITION`` (J is that ill-conditioned at least) the QR is used instead.
+    """
     p = spec.n_params
     fill_jacobian(spec, ev, y, u, buffer[:, :p])
     buffer[:, p] = ev.e
+    gram = buffer.T @ buffer
+    norms = np.sqrt(np.diag(gram))
+    if np.all(norms[:p] > 0) and norms[p] > 0:
+        try:
+            lower = np.linalg.cholesky(gram / norms[:, None] / norms[None, :])
+        except np.linalg.LinAlgError:
+            lower = None
+        if lower is not None:
+            pivots = np.abs(np.diag(lower)[:p])
+            if pivots.min() * GRAM_CONDITION > pivots.max():
+                full = lower.T * norms[None, :]
+                return full[:p, :p], full[:p, p]
     return _factor_in_place(buffer)
 
 

@@ -2,31 +2,30 @@
 
 Prediction-error losses of OE, BJ and (less often) ARMAX models have local minima, and
 on real data the minimum a start leads to depends on the start.  Each structure gets
-a few cheap, sound starting points:
+one principal starting point, cheap and consistent when the structure describes the
+data:
 
 * ARMAX: pseudo-linear regression on the innovations of a long ARX model
-  (Hannan–Rissanen) and the plain ARX model (C = 1);
-* OE: the simplified refined instrumental-variable estimate of B/F (SRIV: instruments
-  from the noise-free auxiliary model, data prefiltered by 1/F) and the plain ARX
-  model (F = A);
-* BJ: those input paths with a Hannan–Rissanen ARMA model of their residual, and BJ
-  holding an ARX model (F = D = A, C = 1); when more starts are needed, the refined
-  IV estimate (prefilter D/(C F), the noise model refitted every round) and the
-  minimised OE model of the same B and F orders (C = D = 1: its loss is that OE
-  model's, so BJ never ends above the OE model with its input path);
-* the general structure: A from ARX with a Hannan–Rissanen noise model and, when
-  more starts are needed, a BJ model with A's poles in F and D, split afterwards;
-* the caller's warm start (``init``), e.g. the model one order lower padded with
-  zeros: the search starts from its loss, so over a sweep of nested orders the loss
-  never rises.
+  (Hannan–Rissanen);
+* OE and BJ: the simplified refined instrumental-variable estimate of B/F (SRIV:
+  instruments from the noise-free auxiliary model, data prefiltered by 1/F), and for
+  BJ a Hannan–Rissanen ARMA model of its residual;
+* the general structure: A and B from ARX, a Hannan–Rissanen model of its residual;
+
+plus, when given, the caller's warm start (``init``), e.g. the model one order lower
+padded with zeros: the search then ends at or below its loss, so over a sweep of
+nested orders the loss never rises.
 
 The search minimises from the strongest start (lowest loss) to convergence.  If its
 prediction errors then look white and uncorrelated with past inputs (Ljung's tests at
 99 %), no other linear model predicts markedly better and the search stops: on data the
-structure describes, that is one minimisation.  Otherwise every other start is tried,
-strongest first, and abandoned once it joins the minimum already found, or when, after
-a few iterations, it is still above that converged minimum and no longer falling fast
-enough to get below it.
+structure describes, that is one minimisation.  Otherwise further starts are built —
+plain ARX (for OE/BJ its input path with a Hannan–Rissanen noise model), BJ holding an
+ARX model (F = D = A, C = 1), the refined IV estimate for BJ (prefilter D/(C F), noise
+model refitted each round), and for the general structure a BJ model whose common
+poles become A — and tried strongest first.  Each is abandoned once it joins the
+minimum already found, or when after a few iterations it is still above that converged
+minimum and no longer falling fast enough to get below it.
 """
 
 from __future__ import annotations
@@ -186,22 +185,17 @@ def more_starts(spec: PolySpec, y, u, max_iterations: int, tolerance) -> list[np
     if na:  # general: a BJ model with A's poles in F and D, split afterwards
         return [_general_from_bj(spec, y, u, max_iterations, tolerance)]
     B, F = _arx_input_path(y, u, nb, nf, nk)
-    out = [spec.theta(None, B, *hannan_rissanen(y - filt(B, F, u), nc, nd), F)]
-    if nc + nd == 0:  # OE
-        return out
+    C, D = hannan_rissanen(y - filt(B, F, u), nc, nd)
+    out = [spec.theta(None, B, C, D, F)]
     if nd:  # BJ holding an ARX model: F = D = A_arx, C = 1 (its loss is the ARX loss)
-        A, B = ls_arx(y, u, min(nf, nd), nb, nk)
+        A, B_arx = ls_arx(y, u, min(nf, nd), nb, nk)
         A = stabilize(A)
-        out.append(spec.theta(None, B, None, A, A))
-    if nf:  # refined IV with the noise model, and the OE model of the same input path
-        out.append(spec.theta(None, *_refined_iv_bj(y, u, spec)))
-        oe_spec = PolySpec("oe", nb=nb, nf=nf, nk=nk)
-        oe_best, _ = best_minimum(
-            oe_spec, starts(oe_spec, y, u), y, u, False, max_iterations, tolerance,
-            more=lambda: more_starts(oe_spec, y, u, max_iterations, tolerance),
-        )
-        _, B, _, _, F = oe_spec.polys(oe_best.evaluation.theta)
-        out.append(spec.theta(None, B, None, None, F))
+        out.append(spec.theta(None, B_arx, None, A, A))
+    if nf and nc + nd:  # refined IV for BJ (Young's RIV), from the ARX input path and its noise model
+        for _ in range(2):
+            B, F = refined_iv(y, u, nb, nf, nk, prefilter=(D, C), start=(B, F))
+            C, D = hannan_rissanen(y - filt(B, F, u), nc, nd)
+        out.append(spec.theta(None, B, C, D, F))
     return out
 
 
@@ -248,13 +242,12 @@ def refined_iv(y, u, nb: int, nf: int, nk: int, prefilter=(ONE, ONE), start=None
     if nf == 0:
         return B, ONE
     first = max(nf, nb + nk - 1)
+    lags_f, lags_b = range(1, nf + 1), range(nk, nk + nb)
     for _ in range(IV_ROUNDS):
         num, den = prefilter[0], polymul(prefilter[1], F)
-        yf, uf, xf = filt(num, den, y), filt(num, den, u), filt(polymul(num, B), polymul(den, F), u)
-        lags_f, lags_b = range(1, nf + 1), range(nk, nk + nb)
-        theta = lagged_iv(
-            yf, [(yf, lags_f, -1.0), (uf, lags_b, 1.0)], [(xf, lags_f, -1.0), (uf, lags_b, 1.0)], first
-        )
+        yf, uf = filt(num, den, y), filt(num, den, u)
+        xf = filt(polymul(num, B), polymul(den, F), u)
+        theta = lagged_iv(yf, [(yf, lags_f, -1.0), (uf, lags_b, 1.0)], [(xf, lags_f, -1.0), (uf, lags_b, 1.0)], first)
         F_new = stabilize(np.r_[1.0, theta[:nf]])
         B = np.r_[np.zeros(nk), theta[nf:]]
         settled = np.linalg.norm(F_new - F) <= IV_SETTLED * np.linalg.norm(F)
@@ -262,17 +255,6 @@ def refined_iv(y, u, nb: int, nf: int, nk: int, prefilter=(ONE, ONE), start=None
         if settled:
             break
     return B, F
-
-
-def _refined_iv_bj(y, u, spec: PolySpec) -> tuple[np.ndarray, ...]:
-    """Refined IV for BJ (Young's RIV): the input path by IV with the prefilter D/C of the
-    current noise model, the noise model refitted (Hannan–Rissanen) to the new residual."""
-    B, F = refined_iv(y, u, spec.nb, spec.nf, spec.nk)
-    C, D = hannan_rissanen(y - filt(B, F, u), spec.nc, spec.nd)
-    for _ in range(2):
-        B, F = refined_iv(y, u, spec.nb, spec.nf, spec.nk, prefilter=(D, C), start=(B, F))
-        C, D = hannan_rissanen(y - filt(B, F, u), spec.nc, spec.nd)
-    return B, C, D, F
 
 
 def hannan_rissanen(v: np.ndarray, nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:
