@@ -91,10 +91,13 @@ def estimate(data: IOData, structure: str, orders, initial_condition: str = "aut
     ``init`` warm-starts the search (not for ``arx``, which is solved exactly): a
     `PolyModel` whose polynomials fit inside the requested orders — typically the
     model one order lower, padded with zeros — or a parameter vector [a b c d f] of
-    the requested orders.  The search starts from it among its own starting points,
-    so the result's loss is never above the warm start's.  In a sweep over nested
-    orders with zero initial conditions, passing each lower model makes the loss
-    fall (or stay) with every added coefficient.
+    the requested orders.  The search then minimises from it and from the principal
+    starting point only (strongest first), so the result's loss is never above the
+    warm start's: in a sweep over nested orders with zero initial conditions, passing
+    each model's best lower neighbour makes the loss fall (or stay) with every added
+    coefficient, at about one minimisation per model.  Without ``init`` the search
+    tries more starts when the first minimum leaves structure in the residuals,
+    among them the nested lower-order models it fits itself (:mod:`maglev.starts`).
     """
     spec = PolySpec.from_orders(structure, orders)
     if structure == "arx":
@@ -198,10 +201,8 @@ def _pem(
     candidates = [nested_theta(spec, init)] if init is not None else []
     candidates += starts(spec, y, u)
     fit_states = _wants_states(spec, candidates, y, u, initial_condition)
-    best, _ = best_minimum(
-        spec, candidates, y, u, fit_states, max_iterations, tolerance,
-        more=lambda: more_starts(spec, y, u, max_iterations, tolerance),
-    )
+    more = None if init is not None else lambda: more_starts(spec, y, u, fit_states, max_iterations, tolerance)
+    best = best_minimum(spec, candidates, y, u, fit_states, max_iterations, tolerance, more=more)
     ev = best.evaluation
     n_initial = ev.n_initial if initial_condition != "backcast" else 0
     mode = initial_condition

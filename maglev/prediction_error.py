@@ -349,8 +349,9 @@ def _boundary_directions(spec: PolySpec, theta: np.ndarray, r: np.ndarray, g: np
     rows = []
     offset = spec.na + spec.nb
     for n in (spec.nc, spec.nd, spec.nf):
-        now = np.r_[1.0, theta[offset : offset + n]]
-        after = now + np.r_[0.0, step[offset : offset + n]]
+        now = np.concatenate((ONE, theta[offset : offset + n]))
+        after = now.copy()
+        after[1:] += step[offset : offset + n]
         if n and not roots_within(now, NEAR_BOUNDARY) and not roots_within(after, MAX_RADIUS):
             now, after = np.roots(now), np.roots(after)
             held = {int(np.argmin(np.abs(now - root))) for root in after[np.abs(after) > MAX_RADIUS]}
@@ -378,19 +379,17 @@ def _restrict(r: np.ndarray, g: np.ndarray, basis: np.ndarray) -> tuple[np.ndarr
 
 def _damped_step(r: np.ndarray, g: np.ndarray, lam: float, scale: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
     """Solve min |R s + g|² + lam |diag(scale) s|² (Marquardt's scaled damping), with s
-    restricted to the columns of ``basis`` when given."""
-    if basis is not None:
-        weighted = np.vstack([r @ basis, np.sqrt(lam) * (scale[:, None] * basis)])
-        rhs = np.concatenate([g, np.zeros(r.shape[1])])
-        t, *_ = np.linalg.lstsq(weighted, -rhs, rcond=None)
-        return basis @ t
-    if lam == 0.0:
+    restricted to the columns of ``basis`` when given (QR of the stacked 2p × p system)."""
+    directions = np.eye(r.shape[1]) if basis is None else basis
+    if lam == 0.0 and basis is None:
         try:
             return -np.linalg.solve(r, g)
         except np.linalg.LinAlgError:
             lam = 1e-8
-    p = r.shape[1]
-    stacked = np.vstack([r, np.sqrt(lam) * np.diag(scale)])
-    rhs = np.concatenate([g, np.zeros(p)])
-    step, *_ = np.linalg.lstsq(stacked, -rhs, rcond=None)
-    return step
+    stacked = np.vstack([r @ directions, np.sqrt(lam) * (scale[:, None] * directions)])
+    q, rr = np.linalg.qr(stacked)
+    try:
+        t = np.linalg.solve(rr, -(q[: r.shape[0]].T @ g))
+    except np.linalg.LinAlgError:
+        t = np.linalg.lstsq(stacked, -np.concatenate([g, np.zeros(r.shape[1])]), rcond=None)[0]
+    return directions @ t

@@ -14,7 +14,7 @@ data:
 
 plus, when given, the caller's warm start (``init``), e.g. the model one order lower
 padded with zeros: the search then ends at or below its loss, so over a sweep of
-nested orders the loss never rises.
+nested orders the loss never rises.  With a warm start only these two are tried.
 
 The search minimises from the strongest start (lowest loss) to convergence.  If its
 prediction errors then look white and uncorrelated with past inputs (Ljung's tests at
@@ -22,7 +22,9 @@ prediction errors then look white and uncorrelated with past inputs (Ljung's tes
 structure describes, that is one minimisation.  Otherwise further starts are built —
 plain ARX (for OE/BJ its input path with a Hannan–Rissanen noise model), BJ holding an
 ARX model (F = D = A, C = 1), the refined IV estimate for BJ (prefilter D/(C F), noise
-model refitted each round), and for the general structure a BJ model whose common
+model refitted each round), for OE and BJ the models one order lower in each
+polynomial minimised from their principal starts and padded with zeros (what a sweep
+passes as its warm start), and for the general structure a BJ model whose common
 poles become A — and tried strongest first.  Each is abandoned once it joins the
 minimum already found, or when after a few iterations it is still above that converged
 minimum and no longer falling fast enough to get below it.
@@ -32,6 +34,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 from scipy.linalg import toeplitz
@@ -60,9 +63,9 @@ def best_minimum(
     max_iterations: int,
     tolerance: float | None,
     more: Callable[[], list[np.ndarray]] | None = None,
-) -> tuple[Minimum, int]:
-    """The lowest minimum found from ``starts`` (and ``more()``, built only when needed)
-    as described in the module docstring, and the number of minimisations run."""
+) -> Minimum:
+    """The lowest minimum found from ``starts`` (and ``more()``, built only when needed),
+    as described in the module docstring."""
     pending = [project(spec, t) for t in starts]
     losses = [evaluate(spec, t, y, u, fit_states, False).loss for t in pending]
     best, runs = None, 0
@@ -89,7 +92,7 @@ def best_minimum(
             extra = [project(spec, t) for t in more()]
             pending += extra
             losses += [evaluate(spec, t, y, u, fit_states, False).loss for t in extra]
-    return best, runs
+    return best
 
 
 def explains(e: np.ndarray, u: np.ndarray, lags: int = 25) -> bool:
@@ -177,7 +180,7 @@ def starts(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
     return [spec.theta(A, B, C, D, None)]
 
 
-def more_starts(spec: PolySpec, y, u, max_iterations: int, tolerance) -> list[np.ndarray]:
+def more_starts(spec: PolySpec, y, u, fit_states: bool, max_iterations: int, tolerance) -> list[np.ndarray]:
     """The other starting points, built only when the strongest start leaves structure in the residuals."""
     na, nb, nc, nd, nf, nk = spec.na, spec.nb, spec.nc, spec.nd, spec.nf, spec.nk
     if nf == 0 and nd == 0:  # ARMAX: the plain ARX model
@@ -196,6 +199,20 @@ def more_starts(spec: PolySpec, y, u, max_iterations: int, tolerance) -> list[np
             B, F = refined_iv(y, u, nb, nf, nk, prefilter=(D, C), start=(B, F))
             C, D = hannan_rissanen(y - filt(B, F, u), nc, nd)
         out.append(spec.theta(None, B, C, D, F))
+    return out + _nested_lower(spec, y, u, fit_states, max_iterations, tolerance)
+
+
+def _nested_lower(spec: PolySpec, y, u, fit_states: bool, max_iterations: int, tolerance) -> list[np.ndarray]:
+    """The OE/BJ models one order lower in each polynomial, each minimised from its
+    principal start, padded with zeros: starts that carry a basin found at a lower
+    order up to this one (with zero initial conditions their loss is the lower model's)."""
+    out = []
+    for key in ("nb", "nc", "nd", "nf"):
+        order = getattr(spec, key)
+        if order > (key == "nb"):
+            lower = replace(spec, **{key: order - 1})
+            fitted = minimise(lower, starts(lower, y, u)[0], y, u, fit_states, max_iterations, tolerance)
+            out.append(spec.theta(*lower.polys(fitted.evaluation.theta)))
     return out
 
 
@@ -203,7 +220,7 @@ def ls_arx(y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int) -> tuple[np.
     """Plain ARX A y = B u + e by least squares on the fully measured rows: (A, B)."""
     first = max(na, nb + nk - 1, 0)
     theta = lagged_lstsq(y, [(y, range(1, na + 1), -1.0), (u, range(nk, nk + nb), 1.0)], first)
-    return np.r_[1.0, theta[:na]], np.r_[np.zeros(nk), theta[na:]]
+    return np.concatenate((ONE, theta[:na])), np.concatenate((np.zeros(nk), theta[na:]))
 
 
 def high_order(n_params: int, N: int) -> int:
@@ -220,8 +237,8 @@ def _pseudo_linear(spec: PolySpec, y, u) -> np.ndarray:
     first = nh + max(na, nb + nk, nc)
     theta = lagged_lstsq(y, [(y, range(1, na + 1), -1.0), (u, range(nk, nk + nb), 1.0), (e, range(1, nc + 1), 1.0)],
                          first)
-    return spec.theta(np.r_[1.0, theta[:na]], np.r_[np.zeros(nk), theta[na : na + nb]],
-                      stabilize(np.r_[1.0, theta[na + nb :]]))
+    return spec.theta(np.concatenate((ONE, theta[:na])), np.concatenate((np.zeros(nk), theta[na : na + nb])),
+                      stabilize(np.concatenate((ONE, theta[na + nb :]))))
 
 
 def _arx_input_path(y, u, nb, nf, nk) -> tuple[np.ndarray, np.ndarray]:
@@ -248,8 +265,8 @@ def refined_iv(y, u, nb: int, nf: int, nk: int, prefilter=(ONE, ONE), start=None
         yf, uf = filt(num, den, y), filt(num, den, u)
         xf = filt(polymul(num, B), polymul(den, F), u)
         theta = lagged_iv(yf, [(yf, lags_f, -1.0), (uf, lags_b, 1.0)], [(xf, lags_f, -1.0), (uf, lags_b, 1.0)], first)
-        F_new = stabilize(np.r_[1.0, theta[:nf]])
-        B = np.r_[np.zeros(nk), theta[nf:]]
+        F_new = stabilize(np.concatenate((ONE, theta[:nf])))
+        B = np.concatenate((np.zeros(nk), theta[nf:]))
         settled = np.linalg.norm(F_new - F) <= IV_SETTLED * np.linalg.norm(F)
         F = F_new
         if settled:
@@ -265,14 +282,14 @@ def hannan_rissanen(v: np.ndarray, nc: int, nd: int) -> tuple[np.ndarray, np.nda
     Dar, _ = ls_arx(v, v, n_ar, 0, 1)
     e = filt(Dar, ONE, v)
     theta = lagged_lstsq(v, [(v, range(1, nd + 1), -1.0), (e, range(1, nc + 1), 1.0)], n_ar + max(nc, nd))
-    return stabilize(np.r_[1.0, theta[nd:]]), stabilize(np.r_[1.0, theta[:nd]])
+    return stabilize(np.concatenate((ONE, theta[nd:]))), stabilize(np.concatenate((ONE, theta[:nd])))
 
 
 def _general_from_bj(spec: PolySpec, y, u, max_iterations, tolerance) -> np.ndarray:
     """Start for A y = B/F u + C/D e with A, F or D free: fit the BJ model with
     F' = A F and D' = A D, then give A the na poles that F' and D' share most closely."""
     wide = PolySpec("pem", nb=spec.nb, nc=spec.nc, nd=spec.nd + spec.na, nf=spec.nf + spec.na, nk=spec.nk)
-    fitted, _ = best_minimum(wide, starts(wide, y, u), y, u, False, max_iterations, tolerance)
+    fitted = best_minimum(wide, starts(wide, y, u), y, u, False, max_iterations, tolerance)
     _, B, C, Dw, Fw = wide.polys(fitted.evaluation.theta)
     rf, rd = list(np.roots(Fw)), list(np.roots(Dw))
     common = []
