@@ -185,6 +185,7 @@ def minimise(
     tolerance: float | None = None,
     abandon_above: float | None = None,
     known_minimum: np.ndarray | None = None,
+    evaluated: Evaluation | None = None,
 ) -> Minimum:
     """Levenberg–Marquardt from ``theta0`` until the expected relative improvement < ``tolerance``.
 
@@ -201,12 +202,15 @@ def minimise(
     above that value and no longer falling fast enough to get below it, and with
     ``known_minimum`` it stops as soon as it reaches that parameter vector (within
     ``SAME_MINIMUM`` relative distance), since it would only repeat that run's work.
+    ``evaluated``: the evaluation at ``theta0`` (already projected), if the caller has it.
     """
     N, p = y.size, spec.n_params
     if tolerance is None:
         tolerance = max(1e-3 * p / N, 1e-12)
     buffer = np.empty((N, p + 1), order="F")  # [J e], factored in place by LAPACK
-    current = evaluate(spec, project(spec, theta0), y, u, fit_states, jacobian=False)
+    if evaluated is None or not np.array_equal(evaluated.theta, theta0):
+        evaluated = evaluate(spec, project(spec, theta0), y, u, fit_states, jacobian=False)
+    current = evaluated
     lam, nu = 0.0, 2.0  # Nielsen's damping update; lam = 0 is a plain Gauss-Newton step
     termination = "maximum number of iterations reached"
     previous_loss = np.inf

@@ -66,32 +66,29 @@ def best_minimum(
 ) -> Minimum:
     """The lowest minimum found from ``starts`` (and ``more()``, built only when needed),
     as described in the module docstring."""
-    pending = [project(spec, t) for t in starts]
-    losses = [evaluate(spec, t, y, u, fit_states, False).loss for t in pending]
+    pending = [evaluate(spec, project(spec, t), y, u, fit_states, False) for t in starts]
     best, runs = None, 0
     while pending:
-        i = int(np.argmin(losses))
-        theta, loss = pending.pop(i), losses.pop(i)
+        start = pending.pop(int(np.argmin([ev.loss for ev in pending])))
         converged = best is not None and best.termination.startswith(CONVERGED)
-        if converged and loss > START_RATIO * best_start:
+        if converged and start.loss > START_RATIO * best_start:
             continue
         result = minimise(
-            spec, theta, y, u, fit_states, max_iterations, tolerance,
+            spec, start.theta, y, u, fit_states, max_iterations, tolerance,
             abandon_above=best.evaluation.loss if converged else None,
             known_minimum=best.evaluation.theta if converged else None,
+            evaluated=start,
         )
         runs += 1
         if best is None:
-            best_start = loss
+            best_start = start.loss
         if best is None or result.evaluation.loss < best.evaluation.loss * (1 - 1e-9):
             best = result
         if runs == 1 and best.termination.startswith(CONVERGED):
             if explains(best.evaluation.e, u):
                 break
         if runs == 1 and more is not None:
-            extra = [project(spec, t) for t in more()]
-            pending += extra
-            losses += [evaluate(spec, t, y, u, fit_states, False).loss for t in extra]
+            pending += [evaluate(spec, project(spec, t), y, u, fit_states, False) for t in more()]
     return best
 
 
@@ -105,10 +102,9 @@ def explains(e: np.ndarray, u: np.ndarray, lags: int = 25) -> bool:
     N = e.size
     M = int(min(lags, max(N // 20, 1)))
     ec, uc = e - e.mean(), u - u.mean()
-    tail = np.zeros(M)
-    r_e = np.correlate(np.concatenate([ec, tail]), ec, "valid")  # Σ_t e(t+τ) e(t), τ = 0..M
-    r_u = np.correlate(np.concatenate([uc, tail]), uc, "valid")
-    r_eu = np.correlate(np.concatenate([ec, tail]), uc, "valid")  # Σ_t e(t+τ) u(t)
+    r_e = np.array([ec[k:] @ ec[: N - k] for k in range(M + 1)])  # Σ_t e(t+τ) e(t), τ = 0..M
+    r_u = np.array([uc[k:] @ uc[: N - k] for k in range(M + 1)])
+    r_eu = np.array([ec[k:] @ uc[: N - k] for k in range(M + 1)])  # Σ_t e(t+τ) u(t)
     if r_e[0] == 0 or r_u[0] == 0:
         return r_e[0] == 0
     r_eu = r_eu / np.sqrt(r_e[0] * r_u[0])
