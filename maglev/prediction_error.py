@@ -225,6 +225,14 @@ def minimise(
         expected = float(gb @ gb) / N
         if current.loss == 0 or expected <= tolerance * current.loss:
             termination = "expected improvement below tolerance"
+            if iterations == 1 and current.loss > 0:
+                # a start this close still gets its Gauss-Newton step: the loss is flat to
+                # within the tolerance there, poorly determined parameters need not be
+                step = _damped_step(r, g, 0.0, np.ones(p), basis)
+                candidate = evaluate(spec, project(spec, current.theta + step), y, u, fit_states, jacobian=False)
+                if candidate.loss < current.loss:
+                    current, r = candidate, None
+                    break
             iterations -= 1
             break
         if abandon_above is not None and iterations > PATIENCE and current.loss > abandon_above:
