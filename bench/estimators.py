@@ -350,8 +350,8 @@ def run(ns: list[int], reps: int, with_peers: bool) -> pd.DataFrame:
                 peer_time[name] = (n, res["time_ms"] / 1e3)
                 rows.append({**row, **res, "ratio": res["time_ms"] / mine["time_ms"]})
                 print(f"  {case.name:12s} N={n:<6d} {name} {res['time_ms']:9.1f} ms", file=sys.stderr)
-    columns = ["case", "N", "method", "reps", "time_ms", "cpu_ms", "starts", "iters", "rel_theta_err", "pole_err", "dFIT_%",
-               "ratio", "note"]
+    columns = ["case", "N", "method", "reps", "time_ms", "cpu_ms", "starts", "iters", "rel_theta_err", "pole_err",
+               "dFIT_%", "ratio", "note"]
     return pd.DataFrame(rows, columns=columns)
 
 

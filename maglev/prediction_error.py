@@ -11,8 +11,10 @@ five ``lfilter`` calls regardless of the order:
 Each iteration takes the triangular factor of the Jacobian (through its Gram matrix,
 or a QR factorisation when it is ill-conditioned) and solves the damped Gauss–Newton
 step on the small triangular system, so retries with a larger damping cost nothing
-extra.  C, D and F are kept stable by reflecting roots that leave the
-unit circle.  With ``initial_condition="estimate"`` the initial state (the
+extra; the Jacobian is written straight into the buffer that is factored.  C, D and F
+are kept stable by reflecting roots that leave the unit circle, and roots on its
+boundary that a step would push out are held there while the other coefficients
+move.  With ``initial_condition="estimate"`` the initial state (the
 polynomial z of the zero-input response z/(C F) δ) is fitted by least squares at
 every evaluation and the Jacobian is projected on the complement of the state
 responses (variable projection, Kaufman's form), whose derivatives are exact.
@@ -389,7 +391,9 @@ def _restrict(r: np.ndarray, g: np.ndarray, basis: np.ndarray) -> tuple[np.ndarr
     return rz, q.T @ g
 
 
-def _damped_step(r: np.ndarray, g: np.ndarray, lam: float, scale: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
+def _damped_step(
+    r: np.ndarray, g: np.ndarray, lam: float, scale: np.ndarray, basis: np.ndarray | None = None
+) -> np.ndarray:
     """Solve min |R s + g|² + lam |diag(scale) s|² (Marquardt's scaled damping), with s
     restricted to the columns of ``basis`` when given (QR of the stacked 2p × p system)."""
     directions = np.eye(r.shape[1]) if basis is None else basis
