@@ -1,36 +1,28 @@
-"""End to end: a small lab sweep with the ranking callback into a tmp store, then the report.
+"""End to end: the default lab sweep with the ranking callback into a tmp store, then the report.
 
-The sweep runs in-process (tests/study/harness.py) with conf/config.yaml's ranking
-callback writing the report under the store.  Expected numbers are read from the
-store, not copied from output.
+The sweep runs in-process (tests/study/harness.py, the session fixture ``default_sweep`` of
+conftest.py) with conf/config.yaml's ranking callback writing the report under the store.
+Expected numbers are read from the store, not copied from output.
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import re
 import shutil
 import subprocess
 
-import numpy as np
 import pytest
 
-from .harness import TINY, all_runs, launch
+from .harness import all_runs
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
 SECTION_IDS = ("cautions", "preparation", "working-region", "inputs", "data", "structures", "top4", "binary-vs-uniform", "best-vs-worst")
 
 
 @pytest.fixture(scope="module")
-def lab_sweep(tmp_path_factory):
-    """The lab sweep reduced to ARX and OE (12 runs; no run figures: the report draws its own), ranked and
-    reported by the callback; its stdout."""
-    store = tmp_path_factory.mktemp("report")
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        launch(store, "+sweep=lab", "structure=arx,oe", *TINY, "tracking.log_figures=false", rank=True)
-    return store, store / "reports", out.getvalue()
+def lab_sweep(default_sweep):
+    """The default sweep (24 full-length runs, no run figures), ranked and reported; (store, report dir, stdout)."""
+    return default_sweep
 
 
 def ranked(runs) -> list:
@@ -84,7 +76,7 @@ def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
         assert ds in sections["inputs"] and ds in sections["data"]
     m = order[0].data.metrics
     assert f"{int(m['n_est'])} samples = {m['n_est'] * m['Ts']:.2f} s" in sections["data"]
-    for st in ("ARX", "OE"):
+    for st in ("ARX", "ARMAX", "OE", "BJ"):
         assert f"<h3>{st}</h3>" in sections["structures"]
     aic = order[0].data.metrics["aic"]
     assert f"{aic:.4f}" in sections["structures"]
