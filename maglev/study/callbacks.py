@@ -76,6 +76,8 @@ class SweepCallback(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
         task = task_config(config)
+        if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
+            render.start()  # the renderer's processes import while the store and the lab steps are made
         client, exp_id = tracking.connect(task["tracking"])
         self.client, self.exp_id = client, exp_id
         if task["tracking"]["reap"]:

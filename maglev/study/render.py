@@ -3,8 +3,8 @@
 A run's five figures cost far more than its estimation (matplotlib's text layout and
 rasterising) and no number depends on them.  In a sweep on the basic launcher, a job
 logs everything else, hands the figure inputs (:class:`maglev.study.identify.FigureInputs`)
-to the renderer (two processes) and returns; the renderer draws, uploads the PNGs and only then
-marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
+to the renderer (one process, started with the sweep) and returns; the renderer draws,
+uploads the PNGs and only then marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
 for it (:func:`drain`) before it counts the runs and the ranking reads them.  A single
 run, or a job in a joblib worker (already one of several processes), draws inline.
 """
@@ -18,7 +18,10 @@ from concurrent.futures.process import BrokenProcessPool
 
 log = logging.getLogger("maglev.study")
 
-WORKERS = 2  # drawing costs ≈ 3× a run's estimation: two renderers keep up on two cores
+# One renderer: a run's five figures take ≈ 0.7 s of CPU, less than the time from one run to the next, so one
+# process keeps up on the second core; a second one cost ≈ 3-5 s more CPU per sweep (its imports) for no
+# shorter sweep (36-48 s both ways at load 1.5-2.5, bench/study_overhead.py --sweep)
+WORKERS = 1
 _pool: ProcessPoolExecutor | None = None
 _pending: dict[str, tuple[str, Future]] = {}  # run id -> (tracking URI, its render)
 
@@ -43,12 +46,34 @@ def draw_and_finish(uri: str, run_id: str, inputs) -> None:
     client.set_terminated(run_id, "FINISHED")
 
 
+def _worker_start() -> None:
+    """In each renderer process: import what drawing needs, before the first run's figures arrive."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import mlflow  # noqa: F401
+
+    import maglev.study.figures  # noqa: F401
+    import maglev.study.tracking  # noqa: F401
+
+
+def start() -> None:
+    """Start the renderer now (a sweep's start: its processes import while the store and the lab steps are
+    made), not at the first run's figures."""
+    global _pool
+    if _pool is None:
+        _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"),
+                                    initializer=_worker_start)
+        for _ in range(WORKERS):  # a spawned pool starts its processes on demand
+            _pool.submit(int)
+
+
 def submit(uri: str, run_id: str, inputs) -> None:
     """Queue the run's figures on the background renderer (started on first use)."""
     global _pool
     for _ in range(2):
         if _pool is None:
-            _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"))
+            start()
         try:
             _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs))
             return

@@ -46,3 +46,15 @@ def test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones(store)
     time.sleep(0.1)
     assert render.abandon() in ([third], [])  # queued and not yet drawn: KILLED; or already done
     assert client.get_run(third).info.status in ("KILLED", "FINISHED")
+
+
+def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store):
+    uri, client, exp = store
+    render.abandon()  # no renderer left from an earlier test
+    render.start()
+    assert len(render._pool._processes) == render.WORKERS  # spawned now, importing while the sweep starts
+    pid = next(iter(render._pool._processes))
+    run = client.create_run(exp).info.run_id
+    render.submit(uri, run, inputs=None)
+    assert render.drain() == {} and client.get_run(run).info.status == "FINISHED"
+    assert next(iter(render._pool._processes)) == pid  # the same process drew it
