@@ -23,7 +23,7 @@ log = logging.getLogger("maglev.study")
 # shorter sweep (36-48 s both ways at load 1.5-2.5, bench/study_overhead.py --sweep)
 WORKERS = 1
 _pool: ProcessPoolExecutor | None = None
-_pending: dict[str, tuple[str, Future]] = {}  # run id -> (tracking URI, its render)
+_pending: dict[str, tuple[str, Future, object]] = {}  # run id -> (tracking URI, its render, figure inputs)
 
 
 def draw_and_finish(uri: str, run_id: str, inputs) -> None:
@@ -75,7 +75,7 @@ def submit(uri: str, run_id: str, inputs) -> None:
         if _pool is None:
             start()
         try:
-            _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs))
+            _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs), inputs)
             return
         except BrokenProcessPool:  # the renderer died earlier: start a new one
             _pool = None
@@ -84,14 +84,23 @@ def submit(uri: str, run_id: str, inputs) -> None:
 
 def pending() -> list[str]:
     """Run ids whose figures are not drawn yet."""
-    return [run_id for run_id, (_, fut) in _pending.items() if not fut.done()]
+    return [run_id for run_id, (_, fut, _) in _pending.items() if not fut.done()]
 
 
 def drain() -> dict[str, str]:
-    """Wait for every queued render; returns ``{run id: error}`` for runs the renderer could not finish
-    (its process died): those are marked FAILED with the error, never left RUNNING."""
+    """Wait for every queued render, drawing the runs the renderer has not started yet here, beside it (the
+    caller waits anyway, and the renderer lags a few runs behind at a sweep's end); returns ``{run id:
+    error}`` for runs that could not be finished (the renderer's process died, or uploading failed): those
+    are marked FAILED with the error, never left RUNNING."""
     failed = {}
-    for run_id, (uri, fut) in list(_pending.items()):
+    for run_id in [run_id for run_id, (_, fut, _) in _pending.items() if fut.cancel()]:
+        uri, _, inputs = _pending.pop(run_id)
+        try:
+            draw_and_finish(uri, run_id, inputs)
+        except Exception as exc:  # noqa: BLE001 — e.g. the store refused the upload
+            failed[run_id] = f"{type(exc).__name__}: {exc}"
+            _fail(uri, run_id, failed[run_id])
+    for run_id, (uri, fut, _) in list(_pending.items()):
         try:
             fut.result()
         except Exception as exc:  # noqa: BLE001 — e.g. BrokenProcessPool: the renderer died

@@ -36,6 +36,9 @@ def test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones(store)
     render.drain()
     pid = next(iter(render._pool._processes))  # the renderer process, started by the first submit
     render.submit(uri, second, inputs=None)
+    deadline = time.monotonic() + 10
+    while not render._pending[second][1].running() and time.monotonic() < deadline:  # handed to the renderer
+        time.sleep(0.01)  # (queued runs it has not taken, drain draws itself)
     os.kill(pid, signal.SIGKILL)
     failed = render.drain()
     assert list(failed) == [second] and "BrokenProcessPool" in failed[second]
@@ -58,3 +61,20 @@ def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store)
     render.submit(uri, run, inputs=None)
     assert render.drain() == {} and client.get_run(run).info.status == "FINISHED"
     assert next(iter(render._pool._processes)) == pid  # the same process drew it
+
+
+def test_drain_draws_the_runs_the_busy_renderer_has_not_started(store):
+    uri, client, exp = store
+    render.start()
+    render._pool.submit(time.sleep, 3)  # the renderer is busy
+    runs = [client.create_run(exp).info.run_id for _ in range(3)]
+    for run in runs:
+        render.submit(uri, run, inputs=None)
+    time.sleep(0.5)  # the pool hands at most one queued run to its process ahead of time
+    futures = {run: render._pending[run][1] for run in runs}
+    assert render.drain() == {}
+    drawn_here = [run for run, fut in futures.items() if fut.cancelled()]  # the renderer never ran these
+    assert len(drawn_here) >= 2
+    for run in runs:  # each finished, with its drawing error tagged (inputs=None), none lost
+        got = client.get_run(run)
+        assert got.info.status == "FINISHED" and got.data.tags["figures_error"].startswith("AttributeError")
