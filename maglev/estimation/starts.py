@@ -40,11 +40,11 @@ import numpy as np
 from scipy.linalg import toeplitz
 from scipy.stats import chi2
 
-from .lagged_ls import lagged_iv, lagged_lstsq
-from .models import PolyModel
-from .polynomials import filt, polymul, stabilize
+from .least_squares import lagged_iv, lagged_lstsq
+from ..model import PolyModel
+from ..polynomials import filt, polymul, stabilize
 from .prediction_error import CONVERGED, Minimum, evaluate, minimise, project
-from .structures import PolySpec
+from ..structures import PolySpec
 
 ONE = np.ones(1)
 START_RATIO = 10.0  # once a run has converged, starts this much worse than the strongest are skipped

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from maglev.data import IOData
-from maglev.estimate import estimate
+from maglev.estimation import estimate
 from maglev.refdata import load_record
 
 GRIDS = {"oe": (2, range(1, 5)), "armax": (3, range(1, 4)), "bj": (4, range(1, 4))}
