@@ -63,8 +63,8 @@ def test_defaults_reproduce_the_real_records():
     assert f"rms {cmp.static_rms:.4f} cm (tolerance {sim_vs_real.STATIC_NOISE_MULTIPLE:g} x noise std " \
            f"= {cmp.static_tolerance:.4f} cm)" in table
     row = next(line.split() for line in table if line.split()[:1] == ["binary_signal_3"])
-    assert [float(x) for x in (row[1], row[2], row[4], row[5])] == pytest.approx(
-        [wn_r, wn_s, z_r, z_s], abs=0.006)
+    assert [float(row[1]), float(row[2])] == pytest.approx([wn_r, wn_s], abs=0.051)  # printed %.1f
+    assert [float(row[4]), float(row[5])] == pytest.approx([z_r, z_s], abs=0.0051)  # printed %.2f
 
 
 # ---------------------------------------------------------------------- dynamics and dry friction
