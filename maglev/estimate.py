@@ -107,6 +107,7 @@ def estimate(data: IOData, structure: str, orders, initial_condition: str = "aut
     and B are free, prediction-error minimisation otherwise.
     """
     spec = PolySpec.from_orders(structure, orders)
+    _check_scale(data)
     if get_structure(structure).least_squares:
         if options:
             raise ValueError(f"{structure} is estimated by least squares and takes no options, got {sorted(options)}")
@@ -146,6 +147,30 @@ def _checked(data: IOData, spec: PolySpec, initial_condition: str) -> tuple[np.n
                 f"its lag covariance is singular (relative eigenvalue {level:.1e})"
             )
     return data.y, data.u
+
+
+MAX_RMS = 1e100  # the data's squares and their sums over N samples stay far inside float64 (1e±308)
+
+
+def _check_options(max_iterations, tolerance) -> None:
+    """``max_iterations`` an integer >= 0 (0: the best starting point), ``tolerance`` None or a number > 0."""
+    if isinstance(max_iterations, (bool, np.bool_)) or not isinstance(max_iterations, (int, np.integer)) \
+            or max_iterations < 0:
+        raise ValueError(f"max_iterations must be an integer >= 0, got {max_iterations!r}")
+    if tolerance is not None and (isinstance(tolerance, (bool, np.bool_)) or not isinstance(tolerance, (int, float))
+                                  or not np.isfinite(tolerance) or tolerance <= 0):
+        raise ValueError(f"tolerance must be None or a finite number > 0, got {tolerance!r}")
+
+
+def _check_scale(data: IOData) -> None:
+    """Refuse data whose scale over- or underflows once squared (loss inf or 0, a "converged" nonsense model)."""
+    if not isinstance(data, IOData):
+        return  # _checked says so
+    for what, x in (("input u", data.u), ("output y", data.y)):
+        rms = float(np.sqrt(np.mean(np.square(x / max(np.max(np.abs(x)), 1e-300))))) * float(np.max(np.abs(x)))
+        if rms > MAX_RMS or 0 < rms < 1 / MAX_RMS:
+            raise ValueError(f"{data.name or 'data'}: {what} has RMS {rms:.1e}; estimation squares the data, which "
+                             f"over- or underflows beyond RMS 1e±100 — rescale it (other units)")
 
 
 def _excitation_level(u: np.ndarray, order: int) -> float:
@@ -321,6 +346,8 @@ def _pem(
     max_iterations: int = 200,
     tolerance: float | None = None,
 ) -> PolyModel:
+    _check_options(max_iterations, tolerance)
+    _check_scale(data)
     y, u = _checked(data, spec, initial_condition)
     g_starts = _g_starts(y, u, spec.nb, spec.nf, spec.nk) if spec.na == 0 and spec.nb else None
     starts = _starts(spec, y, u, g_starts)
