@@ -5,9 +5,11 @@ the working region and its motivation, the three input signals and why (ranges v
 working region, α* from the spectra), the data used for estimation and validation, the
 structures and the motivation of their orders (loss/FPE/AIC vs order, near pole-zero
 cancellations), the top-four ranking, binary vs uniform input for one structure, and
-best vs worst.  Written to ``reports/<sweep>.html`` (default) and logged as
-``report/<sweep>.html`` to the sweep's ranking run — the latest one that ranked the
-same runs, else a new one.  ``maglev report`` and the end-of-sweep callback call it.
+best vs worst.  Written to ``reports/<sweep>-<id>.html`` (default; ``<id>``: the first 8
+characters of the sweep's ``sweep_id``, so two sweeps of one name never overwrite each
+other's report, and a relaunch of the same sweep updates its own) and logged under the
+same name to the sweep's ranking run — the latest FINISHED one that ranked the same
+runs, else a new one.  ``maglev report`` and the end-of-sweep callback call it.
 """
 
 from __future__ import annotations
@@ -81,9 +83,15 @@ def build(ranking: Ranking, ranking_run: str) -> str:
             "</body></html>\n")
 
 
+def report_name(sweep) -> str:
+    """``<sweep name>-<first 8 characters of its sweep_id>.html`` (of its parent run id for a parent without one)."""
+    sid = sweep.parent.data.tags.get("sweep_id") or sweep.parent_id
+    return f"{sweep.name}-{sid[:8]}.html"
+
+
 def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = None) -> Path:
     """Write the page (``out``: a file, a directory, or None for ``reports/``) and log it to the ranking run."""
-    name = f"{ranking.sweep.name}.html"
+    name = report_name(ranking.sweep)
     path = Path(out) if out else reports_dir()
     if path.suffix.lower() != ".html":
         path = path / name
@@ -95,12 +103,13 @@ def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = No
 
 
 def ranking_run_for(ranking: Ranking) -> str:
-    """The latest ranking run of the sweep that ranked exactly these runs; a new one if there is none."""
+    """The latest FINISHED ranking run of the sweep that ranked exactly these runs; a new one if there is
+    none (a ranking run killed half-way is never reused)."""
     sweep = ranking.sweep
     found = sweep.client.search_runs(
         [sweep.experiment_id], order_by=["attributes.start_time DESC"], max_results=1,
         filter_string=(f"tags.kind = 'ranking' and tags.sweep_parent = '{sweep.parent_id}' "
-                       f"and tags.ranked_hash = '{ranking.ranked_hash}'"))
+                       f"and tags.ranked_hash = '{ranking.ranked_hash}' and attributes.status = 'FINISHED'"))
     return found[0].info.run_id if found else log_ranking(ranking)
 
 
