@@ -24,7 +24,9 @@ The issue-15 checks (``ARMAX_ORDERS``, ``FRF_CLASSES``):
 
 * ARMAX [4 4 4 1] on ``binary_signal_2`` at the labelled 1 ms, as the 2022 group
   identified it (whole record mean removed, first half): the rig shows two lightly
-  damped modes (≈ 74 and ≈ 218 rad/s);
+  damped modes (≈ 74 and ≈ 218 rad/s).  The fit is repeated on the simulated record
+  without measurement noise: ARMAX's A polynomial also carries the noise's poles, so
+  a sharp sensor-noise line can take two of its four poles (docs/simulator.md);
 * the real records' Welch frequency-response estimate (:func:`maglev.bla.frequency_response`,
   with its coherence-based error) against the simulator's best linear approximation
   for the same input class (:func:`maglev.bla.bla`), both trimmed and detrended at 1 ms,
@@ -269,6 +271,7 @@ class Comparison:
     startup_sim: tuple[float, float] = (math.nan, math.nan)
     fourth_order: dict[str, tuple[list[Mode], list[Mode]]] | None = None  # record -> (real, sim) OE(4,4,5) modes
     armax: tuple[list[Mode], list[Mode]] | None = None  # (real, sim) ARMAX [4 4 4 1] modes of ARMAX_RECORD
+    armax_noise_free: list[Mode] | None = None  # the same on the simulated record without sensor and process noise
     frf: dict[str, FrfComparison] | None = None  # record -> real FRF vs simulated BLA
 
     @property
@@ -344,6 +347,9 @@ class Comparison:
             for label, modes, pair in zip(("real", "sim"), self.armax, picked):
                 lines.append(f"  {label:>4}: {_modes_text([m for m in pair if m]):<22} (all: {_modes_text(modes)})")
             lines.append("  errors: " + _armax_errors_text(*picked))
+            if self.armax_noise_free is not None:
+                lines.append(f"  sim without measurement noise: {_modes_text(self.armax_noise_free)} "
+                             "(what the plant shows; the noisy record's answer depends on the noise's spectrum)")
         if self.frf:
             lines += ["", f"Frequency response, real Welch estimate vs the simulator's BLA for the same input class "
                       f"(trim {FRF_PREPROCESS.trim}, detrended, {FRF_SEGMENT_S:g} s segments); "
@@ -361,7 +367,9 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
 
     ``records``: dominant OE(2,2,3) modes; ``std_records``: output std;
     ``fourth_order_records``: OE(4,4,5) modes (empty to skip these slower fits);
-    ``armax_check``: ARMAX [4 4 4 1] modes of ``ARMAX_RECORD``; ``frf_records``: real
+    ``armax_check``: ARMAX [4 4 4 1] modes of ``ARMAX_RECORD``, simulated with and
+    without the measurement noise (the noise-free fit shows what the plant itself
+    offers the estimator); ``frf_records``: real
     FRF vs the simulator's BLA (cached on disk, :mod:`maglev.bla`).
     """
     stair = load_record("working_region", root)
@@ -394,6 +402,8 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         alpha_real=alpha(wn), alpha_sim=alpha(sim_wn), modes=modes,
         overshoot_real=over_r, overshoot_sim=over_s, stds=stds, fourth_order=fourth or None,
         armax=tuple(armax_modes_of(d) for d in pairs[ARMAX_RECORD]) if armax_check else None,
+        armax_noise_free=armax_modes_of(lev.simulate(pairs[ARMAX_RECORD][0].u, Ts=pairs[ARMAX_RECORD][0].Ts,
+                                                     seed=seed, noise=False)) if armax_check else None,
         frf={rec: compare_frf(lev, rec, root) for rec in frf_records} or None,
     )
 

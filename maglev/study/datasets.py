@@ -66,8 +66,9 @@ def sim_spec(ds: dict):
     from maglev.labdata import ExperimentSpec
 
     kind = str(ds["input_class"])
+    alpha = ds.get("alpha") if kind == "binary" else None
     return ExperimentSpec(kind=kind, low=float(ds["low"]), high=float(ds["high"]),
-                          alpha=float(ds["alpha"]) if kind == "binary" else None,
+                          alpha=None if alpha is None else float(alpha),
                           duration_s=float(ds["duration_s"]), seed=int(ds["seed"]), Ts=float(ds["Ts"]))
 
 

@@ -64,13 +64,12 @@ def test_toy_structure_is_estimated_by_least_squares(fir):
 
 
 def test_toy_structure_runs_through_a_sweep_and_the_ranking(fir, tmp_path):
-    from tests.study.harness import TINY, all_runs, launch
+    from tests.study.harness import LEAN, TINY, all_runs, launch
 
     from maglev.study.ranking import compute, log_ranking
     from maglev.study.store import load_sweep
 
-    launch(tmp_path, "dataset=uniform_narrow,binary_a025", "structure=fir,arx", "structure.order=3", *TINY,
-           "lab.enabled=false")
+    launch(tmp_path, "dataset=uniform_narrow,binary_a025", "structure=fir,arx", "structure.order=3", *TINY, *LEAN)
     _, _, runs = all_runs(tmp_path)
     fir_runs = [r for r in runs if r.data.tags.get("structure") == "fir"]
     assert len(fir_runs) == 2 and all(r.info.status == "FINISHED" for r in fir_runs)

@@ -20,6 +20,8 @@ warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is dep
 REPO = Path(__file__).resolve().parents[2]
 CONF = REPO / "conf"
 TINY = ["dataset.duration_s=4", "dataset.preprocess.trim=500"]  # 3500 samples → 875 + 875 after decimation
+# what a test that is not about them can leave out: run figures, the BLA and Jacobian, the sweep's lab steps
+LEAN = ["tracking.log_figures=false", "study.true_plant=false", "lab.enabled=false"]
 
 
 def store_overrides(store: Path) -> list[str]:

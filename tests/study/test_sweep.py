@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from .harness import TINY, all_runs, artifact_paths, launch, study_log
+from .harness import LEAN, TINY, all_runs, artifact_paths, launch, study_log
 
 FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png", "figures/step.png"}
 
@@ -143,7 +143,7 @@ def test_failing_run_is_failed_and_the_sweep_goes_on(tmp_path, monkeypatch):
 
     real = job.identify
     monkeypatch.setattr(job, "identify", identify)
-    launch(tmp_path, "dataset=uniform_wide", "structure=arx", "structure.order=2,3", *TINY)
+    launch(tmp_path, "dataset=uniform_wide", "structure=arx", "structure.order=2,3", *TINY, *LEAN)
     client, _, runs = all_runs(tmp_path)
     kids = {r.data.tags["orders"]: r for r in runs if r.data.tags.get("kind") == "model"}
     assert kids["[2 2 2]"].info.status == "FINISHED"
