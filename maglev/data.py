@@ -47,6 +47,24 @@ def _as_vector(values, what: str, source: str) -> np.ndarray:
     return arr
 
 
+def _without_unit(column: str) -> str:
+    """A CSV header's column name without a trailing unit: ``"u (A)"`` → ``"u"``."""
+    name = str(column).strip()
+    return name[: name.rindex("(")].strip() if name.endswith(")") and "(" in name[1:] else name
+
+
+def _time_step(t: np.ndarray, source: str) -> float:
+    """The sampling period of a uniform time column (seconds); a clear error if it is not uniform."""
+    steps = np.diff(t)
+    if t.size < 2 or not np.all(np.isfinite(steps)):
+        raise ValueError(f"{source}: time column 't' must hold at least two numbers (seconds)")
+    ts = float(np.median(steps))
+    if not ts > 0 or np.max(np.abs(steps - ts)) > 1e-6 * ts:
+        raise ValueError(f"{source}: time column 't' is not uniformly spaced (steps {steps.min():g} to "
+                         f"{steps.max():g} s); pass Ts=")
+    return float(f"{ts:.12g}")  # the printed times' rounding removed (1 ms, not 0.0009999999999998899)
+
+
 @dataclass(frozen=True, eq=False)
 class IOData:
     """A single-input single-output record sampled every ``Ts`` seconds.
@@ -155,8 +173,10 @@ class IOData:
     ) -> "IOData":
         """Load a CSV file with a header row naming the input and output columns.
 
-        CSV carries no sampling period: give ``Ts`` (seconds), or a ``Ts`` column
-        with a constant value.
+        A column may carry its unit in the header: ``u (A)`` is column ``u``.  The
+        sampling period is ``Ts`` (seconds) if given, else a ``Ts`` column with a
+        constant value, else the spacing of a time column ``t`` (seconds, uniform), as
+        ``maglev labdata`` writes them (``t (s),u (A),y (cm)``).
         """
         import pandas as pd
 
@@ -167,15 +187,19 @@ class IOData:
             frame = pd.read_csv(path)
         except Exception as exc:
             raise ValueError(f"{path}: cannot read as CSV ({exc})") from None
+        frame.columns = [_without_unit(c) if _without_unit(c) not in frame.columns else c for c in frame.columns]
         for col in (u, y):
             if col not in frame.columns:
                 raise ValueError(
                     f"{path}: no column {col!r}; the header has {list(frame.columns)}. "
                     "Pass u=/y= with the right names"
                 )
+        if Ts is None and "Ts" not in frame.columns and "t" in frame.columns:
+            Ts = _time_step(pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float), str(path))
         if Ts is None:
             if "Ts" not in frame.columns:
-                raise ValueError(f"{path}: CSV has no sampling period; pass Ts= (seconds)")
+                raise ValueError(f"{path}: CSV has no sampling period; pass Ts= (seconds), or add a Ts "
+                                 "column or a time column t")
             values = pd.to_numeric(frame["Ts"], errors="coerce").dropna().unique()
             if values.size != 1:
                 raise ValueError(f"{path}: column 'Ts' must hold one constant sampling period, got "

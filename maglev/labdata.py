@@ -5,8 +5,11 @@ out — a staircase, a step, uniform white noise over ranges inside and beyond t
 working region and random binary signals for every α of the lab's Fig. 5 — but with a
 known true plant and any number of realisations.  An experiment is a small
 :class:`ExperimentSpec`; :func:`experiment` turns a spec or a catalogue name into an
-``IOData``.  ``python -m maglev.labdata --out DIR`` writes the whole catalogue as
-MATLAB-loadable ``.mat`` files (``u``, ``y``, ``Ts``) and CSV files (``u,y``).
+``IOData``.  ``maglev labdata --out DIR`` writes the whole catalogue as
+MATLAB-loadable ``.mat`` files (``u``, ``y``, ``Ts`` and the units ``u_unit``, ``y_unit``)
+and CSV files with a time column and the units in the header (``t (s),u (A),y (cm)``;
+``IOData.from_csv`` reads Ts from ``t``).  u is the coil current command in A, y the
+upper magnet's height in cm as the rig's calibrated laser sensor reports it.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from scipy.io import savemat
 from maglev.lab import signals
 from maglev.data import IOData
 from maglev.plant import LABEL_TS, U_MAX, U_MIN, Levitator
+from maglev.plots import U_UNIT, Y_UNIT
 
 __all__ = ["ExperimentSpec", "CATALOGUE", "experiment", "input_signal", "write_catalogue", "main"]
 
@@ -128,22 +132,24 @@ def experiment(name_or_spec: str | ExperimentSpec, seed: int | None = None,
 
 
 def write_catalogue(out: str | Path, seed: int = 0, plant: Levitator | None = None) -> list[Path]:
-    """Write every catalogue experiment as ``NAME.mat`` (u, y, Ts) and ``NAME.csv`` (u,y); return the paths."""
+    """Write every catalogue experiment as ``NAME.mat`` (u, y, Ts, u_unit, y_unit) and ``NAME.csv``
+    (``t (s),u (A),y (cm)``); return the paths."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for offset, name in enumerate(CATALOGUE):
         data = experiment(name, seed=seed + offset, plant=plant)
         mat, csv = out / f"{name}.mat", out / f"{name}.csv"
-        savemat(mat, {"u": data.u.reshape(-1, 1), "y": data.y.reshape(-1, 1), "Ts": data.Ts})
-        np.savetxt(csv, np.column_stack([data.u, data.y]), delimiter=",", header="u,y",
-                   comments="", fmt="%.17g")
+        savemat(mat, {"u": data.u.reshape(-1, 1), "y": data.y.reshape(-1, 1), "Ts": data.Ts,
+                      "u_unit": U_UNIT, "y_unit": Y_UNIT})
+        np.savetxt(csv, np.column_stack([data.t, data.u, data.y]), delimiter=",",
+                   header=f"t (s),u ({U_UNIT}),y ({Y_UNIT})", comments="", fmt="%.17g")
         written += [mat, csv]
     return written
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m maglev.labdata",
+    parser = argparse.ArgumentParser(prog="maglev labdata",
                                      description="Write the simulated lab dataset (.mat and .csv).")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--seed", type=int, default=0, help="base seed (experiment i uses seed + i)")

@@ -31,6 +31,8 @@ def filt(num: np.ndarray, den: np.ndarray, x: np.ndarray, zi: np.ndarray | None 
     n = n_states(num, den)
     if n == 0:
         return (num[0] / den[0]) * x
+    if zi is None and len(den) == 1:  # FIR: a direct convolution is several times faster
+        return np.convolve(x, np.asarray(num, dtype=float) / den[0])[: len(x)]
     num, den = _pad(num, n + 1), _pad(den, n + 1)
     if zi is None:
         return lfilter(num, den, x)
@@ -103,7 +105,7 @@ def stabilize(p: np.ndarray) -> np.ndarray:
     of the rounded coefficients at or beyond 1.
     """
     p = np.asarray(p, dtype=float)
-    if len(p) <= 1 or _inside(p, MAX_RADIUS):
+    if len(p) <= 1 or roots_within(p, MAX_RADIUS):
         return p.copy()
     roots = np.roots(p)
     outside = np.abs(roots) > 1.0
@@ -115,14 +117,24 @@ def stabilize(p: np.ndarray) -> np.ndarray:
     return q * (p[0] / q[0])
 
 
-def _inside(p: np.ndarray, radius: float) -> bool:
-    """All roots of monic ``p`` within ``radius``: Jury's conditions up to degree 2, else roots."""
-    if p[0] != 1.0 or len(p) > 3:
+def roots_within(p: np.ndarray, radius: float) -> bool:
+    """All roots of monic ``p`` within ``radius``: Jury's conditions up to degree 2, else the
+    Schur–Cohn step-down recursion (reflection coefficients of magnitude below 1), which
+    needs no eigenvalues."""
+    if p[0] != 1.0:
         return bool(np.all(np.abs(np.roots(p)) <= radius))
     if len(p) == 2:
         return abs(p[1]) <= radius
-    a1, a2 = p[1] / radius, p[2] / radius**2  # roots of z² + a1 z + a2 scaled by 1/radius
-    return abs(a2) <= 1.0 and abs(a1) <= 1.0 + a2
+    if len(p) == 3:
+        a1, a2 = p[1] / radius, p[2] / radius**2  # roots of z² + a1 z + a2 scaled by 1/radius
+        return abs(a2) <= 1.0 and abs(a1) <= 1.0 + a2
+    a = np.asarray(p, dtype=float) / radius ** np.arange(len(p))
+    for m in range(len(a) - 1, 0, -1):
+        k = a[m]
+        if abs(k) >= 1.0:
+            return False
+        a = (a[:m] - k * a[m:0:-1]) / (1.0 - k * k)
+    return True
 
 
 def _pad(p: np.ndarray, n: int) -> np.ndarray:

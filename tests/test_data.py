@@ -51,6 +51,15 @@ def test_from_csv_round_trip_and_bad_cell(tmp_path):
     with pytest.raises(ValueError, match=r"v.csv: column 'Ts' must hold one constant sampling period, got 2 "
                                          r"different values \(0.001, 0.002\)"):
         IOData.from_csv(varying)
+    # a time column gives Ts; units in the header name the column
+    clock = tmp_path / "c.csv"
+    clock.write_text("t (s),u (A),y (cm)\n" + "\n".join(f"{0.003 * i!r},{i},{-i}" for i in range(30)))
+    d = IOData.from_csv(clock)
+    assert d.Ts == 0.003 and np.array_equal(d.y, -d.u)
+    jitter = tmp_path / "j.csv"
+    jitter.write_text("t,u,y\n" + "\n".join(f"{0.001 * i + (0.0004 if i == 7 else 0)},{i},{i}" for i in range(30)))
+    with pytest.raises(ValueError, match=r"j.csv: time column 't' is not uniformly spaced"):
+        IOData.from_csv(jitter)
 
 
 @pytest.mark.parametrize(

@@ -7,6 +7,9 @@ import pytest
 
 from maglev import estimate as E
 from maglev.data import IOData
+from maglev.prediction_error import evaluate
+from maglev.starts import nested_theta
+from maglev.structures import PolySpec
 from maglev.validate import fit_percent
 
 from .systems import TRUE, simulate, true_model
@@ -159,3 +162,43 @@ def test_input_not_persistently_exciting_is_refused():
     y = np.convolve(u, [0, 1, 0.5])[: u.size] + 0.01 * np.random.default_rng(0).standard_normal(u.size)
     with pytest.raises(ValueError, match="not persistently exciting of order 4"):
         E.oe(IOData(u, y, 1.0, name="alt"), 2, 2, 1)
+
+
+def test_warm_start_from_the_nested_lower_model_never_ends_above_it():
+    """OE [2 1 2] padded into OE [2 2 2] starts at the lower loss (zero initial conditions)."""
+    data = simulate("oe", 3_000, seed=11)
+    low = E.oe(data, 2, 1, 2, initial_condition="zero")
+    spec = PolySpec("oe", nb=2, nf=2, nk=2)
+    padded = nested_theta(spec, low)
+    np.testing.assert_array_equal(padded, np.r_[low.parameters, 0.0])  # only the new f2 is zero
+    assert evaluate(spec, padded, data.y, data.u, False, False).loss == pytest.approx(low.report.loss, rel=1e-12)
+    high = E.oe(data, 2, 2, 2, initial_condition="zero", init=low)
+    assert high.report.loss <= low.report.loss
+
+
+def test_warm_start_from_an_arx_model_folds_its_A_into_F_and_D():
+    """ARX A y = B u + e is BJ with F = D = A and C = 1: as a warm start it loses nothing."""
+    data = simulate("bj", 3_000, seed=12)
+    model = E.arx(data, 2, 2, 1, initial_condition="zero")
+    spec = PolySpec("bj", nb=2, nc=1, nd=2, nf=2, nk=1)
+    _, B, C, D, F = spec.polys(nested_theta(spec, model))
+    np.testing.assert_array_equal(F, model.A)
+    np.testing.assert_array_equal(D, model.A)
+    np.testing.assert_array_equal(B, model.B)
+    np.testing.assert_array_equal(C, [1.0, 0.0])
+    start_loss = evaluate(spec, nested_theta(spec, model), data.y, data.u, False, False).loss
+    assert start_loss == pytest.approx(np.mean(model.residuals(data, "zero") ** 2), rel=1e-9)
+    assert E.bj(data, 2, 1, 2, 2, 1, initial_condition="zero", init=model).report.loss <= start_loss
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda d, m: E.oe(d, 2, 1, 2, init=m), "init oe\\[2 2 2\\].* has F of degree 2; oe\\[2 1 2\\] allows 1"),
+    (lambda d, m: E.oe(d, 2, 2, 1, init=m), "B coefficients at delays 2…3, outside oe\\[2 2 1\\]'s 1…2"),
+    (lambda d, m: E.oe(d, 2, 2, 2, init=[0.1, 0.2]), "init must be a PolyModel or a vector of its 4 parameters"),
+    (lambda d, m: E.estimate(d, "arx", [2, 2, 2], init=m), "arx is solved exactly"),
+])
+def test_warm_starts_that_do_not_fit_are_refused(call, message):
+    data = simulate("oe", 1_000, seed=13)
+    model = E.oe(data, 2, 2, 2)
+    with pytest.raises(ValueError, match=message):
+        call(data, model)

@@ -148,8 +148,15 @@ def test_labdata_experiment_specs_and_catalogue(tmp_path):
 
 def test_labdata_cli_writes_loadable_files(tmp_path):
     assert labdata.main(["--out", str(tmp_path)]) == 0
+    from scipy.io import loadmat
+
     for name in labdata.CATALOGUE:
         mat = IOData.from_mat(tmp_path / f"{name}.mat")
-        csv = IOData.from_csv(tmp_path / f"{name}.csv", Ts=mat.Ts)
+        csv = IOData.from_csv(tmp_path / f"{name}.csv")  # Ts from the time column
+        assert csv.Ts == mat.Ts == 0.001
         assert np.array_equal(mat.u, csv.u) and np.array_equal(mat.y, csv.y)
         assert mat.N * mat.Ts >= 20
+    # the units, as the rig reports them: coil current in A, upper magnet height in cm
+    assert (tmp_path / "step.csv").read_text().splitlines()[0] == "t (s),u (A),y (cm)"
+    units = loadmat(tmp_path / "step.mat")
+    assert (str(units["u_unit"][0]), str(units["y_unit"][0])) == ("A", "cm")

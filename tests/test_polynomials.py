@@ -5,14 +5,22 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import freqz, lfilter
 
-from maglev.polynomials import MAX_RADIUS, _inside, free_responses, stabilize
+from maglev.polynomials import MAX_RADIUS, free_responses, roots_within, stabilize
 
 
 def test_fast_stability_check_agrees_with_roots():
     rng = np.random.default_rng(0)
     for _ in range(5000):
         p = np.r_[1.0, rng.uniform(-2.5, 2.5, rng.integers(1, 5))]
-        assert _inside(p, MAX_RADIUS) == bool(np.all(np.abs(np.roots(p)) <= MAX_RADIUS)), p
+        assert roots_within(p, MAX_RADIUS) == bool(np.all(np.abs(np.roots(p)) <= MAX_RADIUS)), p
+    for _ in range(1000):  # degrees 3…8 near the circle, where the Schur–Cohn recursion decides
+        n_pairs = rng.integers(1, 5)
+        pairs = rng.uniform(0.5, 1.1, n_pairs) * np.exp(1j * rng.uniform(0, np.pi, n_pairs))
+        real = rng.uniform(-1.1, 1.1, rng.integers(0, 2))
+        p = np.real(np.poly(np.r_[pairs, pairs.conj(), real]))
+        radius = np.abs(np.roots(p)).max()
+        if p.size > 3 and abs(radius - 0.95) > 1e-6:
+            assert roots_within(p, 0.95) == (radius <= 0.95), p
 
 
 def test_stabilize_reflects_outside_roots_and_keeps_the_magnitude_shape():

@@ -15,6 +15,7 @@ from maglev.lab.input_design import AlphaChoice, OutputSpectrum
 from maglev.lab.sampling import RiseTime
 from maglev.lab.signals import rbs_spectrum
 from maglev.lab.working_region import WorkingRegion
+from maglev.plots import U_UNIT, Y_UNIT
 
 __all__ = ["plot_working_region", "plot_rise_time", "plot_output_spectrum", "plot_alpha"]
 
@@ -23,20 +24,21 @@ def _axes(ax: Axes | None) -> Axes:
     return Figure(figsize=(6, 4), layout="constrained").add_subplot() if ax is None else ax
 
 
-def plot_working_region(r: WorkingRegion, ax: Axes | None = None) -> Figure:
+def plot_working_region(r: WorkingRegion, ax: Axes | None = None, u_unit: str = U_UNIT,
+                        y_unit: str = Y_UNIT) -> Figure:
     """ȳ vs ū with the fitted line and the region's bounds and centre (the lab's Fig. 3)."""
     ax = _axes(ax)
     inside = slice(r.lo, r.hi + 1)
     ax.plot(r.u_bar, r.y_bar, "s", mfc="none", color="tab:red", label="stationary averages")
     uu = np.array([r.u_min, r.u_max])
-    ax.plot(uu, r.slope * uu + r.intercept, "k-", label=f"LS line, slope {r.slope:.3g}")
+    ax.plot(uu, r.slope * uu + r.intercept, "k-", label=f"LS line, slope {r.slope:.3g} {y_unit}/{u_unit}")
     ax.plot(r.u_bar[inside], r.y_bar[inside], "s", color="tab:red")
     for edge in uu:
         ax.axvline(edge, color="k", lw=0.8)
-    ax.axvline(r.u_star, color="k", ls=":", label=f"working point {r.u_star:.3g}")
-    ax.set_xlabel("step level ū")
-    ax.set_ylabel("stationary output ȳ")
-    ax.set_title(f"Working region [{r.u_min:.3g}, {r.u_max:.3g}]")
+    ax.axvline(r.u_star, color="k", ls=":", label=f"working point {r.u_star:.3g} {u_unit}")
+    ax.set_xlabel(f"step level ū ({u_unit})")
+    ax.set_ylabel(f"stationary output ȳ ({y_unit})")
+    ax.set_title(f"Working region [{r.u_min:.3g}, {r.u_max:.3g}] {u_unit}")
     ax.legend(loc="best", fontsize="small")
     return ax.figure
 
@@ -64,7 +66,7 @@ def plot_output_spectrum(r: OutputSpectrum, ax: Axes | None = None) -> Figure:
     ax.axvspan(r.band[0] / np.pi, r.band[1] / np.pi, color="tab:orange", alpha=0.3,
                label=f"{r.fraction:.0%} of the energy")
     ax.set_xlabel("ω / π  (1 = Nyquist)")
-    ax.set_ylabel("|Y|")
+    ax.set_ylabel(f"|Y| ({Y_UNIT})")
     ax.legend(loc="best", fontsize="small")
     return ax.figure
 

@@ -208,6 +208,9 @@ class SweepCallback(Callback):
         refs = len(tracking.referenced(self.client, self.exp_id, self.parent))
         tracking.log_batch(self.client, self.parent,
                            metrics={**{f"runs_{s.lower()}": n for s, n in counts.items()}, "runs_referenced": refs})
+        from maglev.study.ranking import describe_sweep
+
+        describe_sweep(self.client, self.parent)  # what was swept, the top four and cautions if ranked
         self.client.set_terminated(self.parent, "FINISHED")
         tracking.release_sweep(self.lock)
         os.environ.pop(tracking.PARENT_ENV, None)

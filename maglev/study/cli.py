@@ -1,7 +1,7 @@
 """The ``maglev`` command: every operation on the study and the simulator, one subcommand each.
 
-    maglev rank       [--tracking-uri URI] [--experiment NAME] [--parent RUN_ID] [--structure S]
-    maglev report     [same] [--out FILE|DIR]
+    maglev rank       [--tracking-uri URI] [--experiment NAME] [--parent RUN_ID] [--structure S] [--force]
+    maglev report     [--tracking-uri URI] [--experiment NAME] [--parent RUN_ID] [--structure S] [--out FILE|DIR]
     maglev reproduce  RUN_ID [--tracking-uri URI] [--data-dir DIR] [--log]
     maglev reap       [--tracking-uri URI] [--experiment NAME] [--older-than-hours H]
     maglev ui         [--tracking-uri URI] [--port 5000]
@@ -41,16 +41,21 @@ def _uri(a: argparse.Namespace) -> str:
 
 
 def _rank(a: argparse.Namespace) -> int:
-    from maglev.study.ranking import compute, log_ranking, top_text, ui_hint
+    from maglev.study.ranking import compute, log_ranking, previous_ranking_run, top_text, ui_hint
     from maglev.study.store import load_sweep
 
     sweep = load_sweep(_uri(a), a.experiment, a.parent)
-    ranking = compute(sweep, a.structure)
-    run_id = log_ranking(ranking)
+    ranking = compute(sweep, a.structure, draw=False)
+    run_id = None if a.force else previous_ranking_run(ranking)
+    reused = run_id is not None
+    if not reused:
+        ranking = compute(sweep, a.structure)
+        run_id = log_ranking(ranking)
     print(top_text(ranking))
     for note in ranking.notes:
         print(f"  note: {note}")
-    print(f"ranking run {run_id}\n  {ui_hint(sweep, run_id)}")
+    again = " (reused: it ranked these same runs; --force logs a new one)" if reused else ""
+    print(f"ranking run {run_id}{again}\n  {ui_hint(sweep, run_id)}")
     return 0
 
 
@@ -110,10 +115,12 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     rank = sub.add_parser("rank", help="rank a sweep's runs and log a ranking run")
     _store_args(rank)
+    rank.add_argument("--force", action="store_true",
+                      help="log a new ranking run even if one ranked exactly these runs")
     rank.set_defaults(func=_rank)
     report = sub.add_parser("report", help="write a sweep's lab report (HTML) and log it")
     _store_args(report)
-    report.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>.html)")
+    report.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>-<id>.html)")
     report.set_defaults(func=_report)
     repro = sub.add_parser("reproduce", help="recompute a run from its logged config; exit 0 if identical")
     repro.add_argument("run_id")

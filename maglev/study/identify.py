@@ -69,8 +69,10 @@ def orders_string(structure: dict) -> str:
 
 
 def run_label(cfg: dict) -> str:
-    """Readable run name, e.g. ``bj[2 2 2 2 2] · uniform_wide``."""
-    return f"{cfg['structure']['name']}{orders_string(cfg['structure'])} · {cfg['dataset']['name']}"
+    """Run name short enough for the UI's run-name column, e.g. ``bj 3-3-3-3-2 · binary_a025``: the
+    structure, its MATLAB order vector joined by ``-`` (``bj [3 3 3 3 2]``) and the dataset."""
+    orders = "-".join(str(o) for o in orders_of(cfg["structure"]))
+    return f"{cfg['structure']['name']} {orders} · {cfg['dataset']['name']}"
 
 
 @single_threaded_blas  # same numbers, bit for bit, whichever launcher or process runs it

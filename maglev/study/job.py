@@ -26,6 +26,7 @@ from maglev.study.config import check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
 
 log = logging.getLogger("maglev.study")
+ENTRY = "study.py"  # the runs' source in the MLflow UI
 
 
 def hydra_context() -> dict:
@@ -57,7 +58,7 @@ def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
         "kind": "model", "dataset": ds["name"], "input_class": ds["input_class"],
         "data_source": ds["source"], "structure": st["name"], "orders": orders_string(st),
         "val_dataset": f"{ds['name']}[val]", "config_hash": chash, "sweep": cfg["study"]["name"],
-        **tracking.process_tags(),
+        **tracking.process_tags(), **tracking.source_tags(ENTRY),
     }
     if ctx:
         tags["hydra.output_dir"] = ctx["output_dir"]
@@ -65,6 +66,64 @@ def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
     if parent:
         tags["mlflow.parentRunId"] = parent
     return tags
+
+
+def skip_message(label: str, done, chash: str) -> str:
+    """Why a job logs nothing: which run holds its config (FINISHED, or RUNNING in a live process: another
+    launch or an overlapping sweep), and how to run it again."""
+    status = done.info.status
+    if status == "RUNNING":
+        status += f" in process {done.data.tags.get('pid', '?')} on {done.data.tags.get('host', '?')}"
+    return (f"skip {label}: run {done.info.run_name!r} ({done.info.run_id}) already holds this config "
+            f"(hash {chash[:10]}, {status}); to run it again add study.skip_finished=false")
+
+
+def log_data_inputs(client, run_id: str, cfg: dict, prepared) -> None:
+    """The run's estimation and validation data as MLflow dataset inputs (file records by their path)."""
+    source = prepared.raw.meta.get("source") if cfg["dataset"]["source"] == "file" else None
+    spec = prepared.raw.meta.get("spec") if source is None else None
+    tracking.log_dataset_inputs(client, run_id, prepared.est, prepared.val, source, spec)
+
+
+def _pct(x: float) -> str:
+    return f"{x:.2f} %"
+
+
+def model_description(cfg: dict, m: dict) -> str:
+    """The model run's description (Markdown): structure, orders, FITs and residual tests, from its metrics."""
+    from maglev.structures import get as structure
+
+    st, ds = cfg["structure"], cfg["dataset"]
+    names = " ".join(structure(st["name"]).orders)
+    white = "white" if m["whiteness_pass"] else "not white"
+    indep = "independent of the input" if m["independence_pass"] else "correlated with the input"
+    beats = "above" if m["val_fit"] > m["val_fit_naive"] else "not above"
+    h = int(cfg["study"]["val_horizon"])
+    head = (f"{st['name'].upper()} {orders_string(st)} on {ds['name']}: {h}-step validation FIT "
+            f"{_pct(m['val_fit'])}, {beats} the naive y(t-{h}) {_pct(m['val_fit_naive'])}; simulation FIT "
+            f"{_pct(m['val_fit_sim'])}. Residuals {white} (p = {m['whiteness_pvalue']:.3g}) and {indep} "
+            f"(p = {m['independence_pvalue']:.3g}), tests at the 1 % level.")
+    stable = "stable" if m["max_pole_radius"] < 1 else "unstable"
+    rows = [("structure", f"`{st['name']}` orders [{names}] = {orders_string(st)}, {int(m['n_params'])} parameters, "
+                          f"{int(m['iterations'])} iterations"),
+            ("data", f"{ds['name']} ({ds['source']}, {ds['input_class']} input): {int(m['n_est'])} estimation + "
+                     f"{int(m['n_val'])} validation samples, Ts = {m['Ts']:g} s, working point u0 = {m['u0']:.3g} A; "
+                     "u in A, y in cm"),
+            ("FIT", f"validation {h}-step {_pct(m['val_fit'])}, simulation {_pct(m['val_fit_sim'])}, naive "
+                    f"{_pct(m['val_fit_naive'])}; estimation {_pct(m['est_fit'])}"),
+            ("criteria", f"loss {m['loss']:.4g}, FPE {m['fpe']:.4g}, AIC {m['aic']:.4g}, BIC {m['bic']:.4g}"),
+            ("residuals", f"whiteness χ² {m['whiteness_stat']:.4g} (p = {m['whiteness_pvalue']:.3g}), independence "
+                          f"χ² {m['independence_stat']:.4g} (p = {m['independence_pvalue']:.3g}); lags outside the "
+                          f"99 % band: {100 * m['resid_auto_outside']:.1f} % auto, "
+                          f"{100 * m['resid_cross_outside']:.1f} % cross"),
+            ("G", f"largest pole radius {m['max_pole_radius']:.4f} ({stable}), static gain {m['dcgain']:.4g} cm/A, "
+                  f"{int(m['near_cancellations'])} near pole-zero cancellation(s)")]
+    if "g_bla_err" in m:
+        rows.append(("truth", f"distance to the best linear approximation {m['g_bla_err']:.3g} (relative, "
+                              f"input-spectrum weighted); the BLA's own simulation FIT {_pct(m['bla_fit_ceiling'])}"))
+    table = "\n".join(f"| {k} | {v} |" for k, v in rows)
+    return (f"{head}\n\n| | |\n|---|---|\n{table}\n\nFigures under `figures/`, the model in `model/model.json`, "
+            "the resolved config in `config/config.yaml` (`maglev reproduce` recomputes it).\n")
 
 
 def run(cfg: DictConfig) -> float | None:
@@ -87,9 +146,7 @@ def run(cfg: DictConfig) -> float | None:
         run_id, holder = tracking.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
         if holder is not None:
             tracking.reference(client, holder, parent, plain["study"]["name"])
-            log.info("skip %s: run %s with config hash %s is %s", label, holder.info.run_id, chash[:10],
-                     holder.info.status if holder.info.status == "FINISHED"
-                     else f"RUNNING (process {holder.data.tags.get('pid', '?')} on {holder.data.tags.get('host', '?')})")
+            log.info("%s", skip_message(label, holder, chash))
             return None
     else:
         run_id = create()
@@ -106,6 +163,9 @@ def run(cfg: DictConfig) -> float | None:
                 files[f"config/hydra/{f.name}"] = f
         tracking.log_files(client, run_id, files)
         tracking.log_batch(client, run_id, metrics=out.metrics)
+        log_data_inputs(client, run_id, plain, out.prepared)
+        tracking.log_batch(client, run_id, metrics=tracking.key_metrics(out.metrics),
+                           tags={tracking.NOTE: model_description(plain, out.metrics)})
         if not plain["tracking"]["log_figures"]:
             client.set_terminated(run_id, "FINISHED")
         elif ctx.get("job_num") is not None and ctx["launcher"].endswith("BasicLauncher"):

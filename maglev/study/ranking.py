@@ -13,6 +13,7 @@ the same data).  ``maglev rank`` and the end-of-sweep callback call it.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
 from dataclasses import asdict, dataclass, field, replace
@@ -22,7 +23,8 @@ import numpy as np
 import pandas as pd
 
 from maglev.study.cautions import Caution, cautions
-from maglev.study.store import Sweep, SweepError, artifact_json, dataset_configs, load_model, run_config
+from maglev.study.store import (Sweep, SweepError, artifact_bytes, artifact_json, dataset_configs, load_model,
+                                run_config)
 from maglev.study.tracking import log_files
 from maglev.validate import ResidResult
 
@@ -159,8 +161,10 @@ def run_resid(sweep: Sweep, row: pd.Series, model):
     return resid(prep.val, model, lags=int(cfg["study"]["resid_lags"]))
 
 
-def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> Ranking:
-    """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures."""
+def compute(sweep: Sweep, structure: str | None = None, common: bool = True, draw: bool = True) -> Ranking:
+    """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures; with
+    ``draw=False`` only the table, the comparison's choice and the cautions (enough for :func:`top_text`
+    and :func:`previous_ranking_run`)."""
     from maglev.study.figures import best_worst_figures, comparison_figure, png
 
     table = rank_table(sweep.runs)
@@ -169,6 +173,9 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True) -> 
     if chosen is None:
         notes.append("no structure has both binary- and uniform-input runs: no binary vs uniform comparison")
     comp = comparison_table(table, chosen) if chosen else None
+    if not draw:
+        return Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=None, models={},
+                       configs={}, resids={}, notes=notes, cautions=sweep_cautions(sweep, table, comp))
     wanted = [table.iloc[0], table.iloc[-1]] + ([r for _, r in comp.iterrows()] if comp is not None else [])
     models = {r["run_id"]: load_model(sweep.client, r["run_id"]) for r in wanted}
     best, worst = table.iloc[0], table.iloc[-1]
@@ -265,28 +272,142 @@ def top_text(r: Ranking) -> str:
 
 # ---------------------------------------------------------------------------- the ranking run
 def log_ranking(r: Ranking) -> str:
-    """Log the ranking as a new FINISHED run (``kind=ranking``); tag the parent with its id; return the id."""
+    """Log the ranking as a new FINISHED run (``kind=ranking``, source ``maglev rank``, which the end-of-sweep
+    ranking runs as well); tag the parent with its id and describe both; return the id."""
     from maglev.study import tracking
 
     client = r.sweep.client
     tags = {"kind": "ranking", "sweep": r.sweep.name, "sweep_parent": r.sweep.parent_id,
-            "best_run": r.best["run_id"], "worst_run": r.worst["run_id"],
-            "compared_structure": r.structure or "", "ranked_hash": r.ranked_hash, **tracking.process_tags()}
+            "best_run": r.best["run_id"], "worst_run": r.worst["run_id"], "best_run_name": r.best["name"],
+            "worst_run_name": r.worst["name"], "compared_structure": r.structure or "",
+            "ranked_hash": r.ranked_hash, **tracking.process_tags(), **tracking.source_tags("maglev rank")}
     run_id = client.create_run(r.sweep.experiment_id, run_name=f"ranking · {r.sweep.name}", tags=tags).info.run_id
     metrics = {"n_ranked": len(r.table), "best_val_fit": r.best["val_fit"], "worst_val_fit": r.worst["val_fit"],
                "n_cautions": len(r.cautions)}
     metrics.update({f"top{i + 1}_val_fit": v for i, v in enumerate(r.top["val_fit"])})
     metrics.update({f"ignored_{s.lower()}": n for s, n in r.sweep.ignored.items()})
-    tracking.log_batch(client, run_id, metrics=metrics)
+    tracking.log_batch(client, run_id, metrics=metrics, tags={tracking.NOTE: ranking_description(r, run_id)})
     log_files(client, run_id, r.files)
     client.set_terminated(run_id, "FINISHED")
     tracking.log_batch(client, r.sweep.parent_id, tags={"ranking_run": run_id})
+    describe_sweep(client, r.sweep.parent_id)
     return run_id
 
 
+def report_name(sweep: Sweep) -> str:
+    """The report's file name, ``<sweep name>-<first 8 characters of its sweep_id>.html`` (of the parent run id
+    for a parent without one): two sweeps of one name never overwrite each other's report, and a relaunch of
+    the same sweep updates its own."""
+    sid = sweep.parent.data.tags.get("sweep_id") or sweep.parent_id
+    return f"{sweep.name}-{sid[:8]}.html"
+
+
+def previous_ranking_run(r: Ranking) -> str | None:
+    """The latest ranking run of the sweep that ranked exactly these runs (same ``ranked_hash``), if any."""
+    sweep = r.sweep
+    found = sweep.client.search_runs(
+        [sweep.experiment_id], order_by=["attributes.start_time DESC"], max_results=1,
+        filter_string=(f"tags.kind = 'ranking' and tags.sweep_parent = '{sweep.parent_id}' "
+                       f"and tags.ranked_hash = '{r.ranked_hash}' and attributes.status = 'FINISHED'"))
+    return found[0].info.run_id if found else None
+
+
+# ---------------------------------------------------------------------------- descriptions
+def _link(exp_id: str, run_id: str, text: str) -> str:
+    from maglev.study.tracking import run_link
+
+    return f"[{text.replace('[', '(').replace(']', ')')}]({run_link(exp_id, run_id)})"
+
+
+def top_markdown(exp_id: str, top: pd.DataFrame) -> str:
+    """The top four as a Markdown table whose names link to the runs."""
+    lines = ["| # | run | val FIT % | naive % | sim FIT % | parameters | validated on |", "|---|---|---|---|---|---|---|"]
+    for _, row in top.iterrows():
+        n = "?" if pd.isna(row["n_params"]) else int(row["n_params"])
+        lines.append(f"| {int(row['rank'])} | {_link(exp_id, row['run_id'], row['name'])} | {row['val_fit']:.2f} | "
+                     f"{row['val_fit_naive']:.2f} | {row['val_fit_sim']:.2f} | {n} | {row['val_dataset']} |")
+    return "\n".join(lines) + "\n"
+
+
+def ranking_description(r: Ranking, run_id: str) -> str:
+    """The ranking run's description (Markdown): what was ranked, best and worst, the top four, the cautions."""
+    exp = r.sweep.experiment_id
+    ignored = ", ".join(f"{n} {s}" for s, n in sorted(r.sweep.ignored.items()))
+    parts = [f"Ranking of sweep {r.sweep.name}: {len(r.table)} FINISHED model runs by one-step validation FIT "
+             f"(ties to fewer parameters){f', {ignored} not ranked' if ignored else ''}. Best "
+             f"{r.best['name']} ({r.best['val_fit']:.2f} %), worst {r.worst['name']} ({r.worst['val_fit']:.2f} %).",
+             f"Sweep parent: {_link(exp, r.sweep.parent_id, r.sweep.name)}; best "
+             f"{_link(exp, r.best['run_id'], r.best['name'])}, worst {_link(exp, r.worst['run_id'], r.worst['name'])}.",
+             "### Top four\n\n" + top_markdown(exp, r.top)]
+    note = validation_note(r.top)
+    if note:
+        parts.append(f"The top four were {note}.")
+    parts.append(f"### Cautions ({len(r.cautions)})\n\n" + ("".join(f"- {c.text}\n" for c in r.cautions)
+                                                            or "No caution applies.\n"))
+    if r.structure:
+        parts.append(f"Binary vs uniform input compared for `{r.structure}`: `binary_vs_uniform/`.")
+    parts += [f"Note: {n}" for n in r.notes]
+    parts.append("Artifacts: `ranking/table.md` (every ranked run), `best_vs_worst/`, `cautions/`, and the lab "
+                 f"report `report/{report_name(r.sweep)}` (`maglev report`). Run id {run_id}.")
+    return "\n\n".join(parts) + "\n"
+
+
+def swept(kids: list) -> str:
+    """What a sweep varied, from its model runs' tags: datasets, structures, largest polynomial orders (each in
+    the order the runs started)."""
+    kids = sorted(kids, key=lambda r: r.info.start_time)
+
+    def values(tag: str) -> list[str]:
+        return list(dict.fromkeys(r.data.tags.get(tag, "?") for r in kids))
+
+    orders = sorted({int(o) for o in (model_order(r.data.tags.get("orders", "")) for r in kids) if not math.isnan(o)})
+    orders_text = ", ".join(map(str, orders)) or "?"
+    ds, st = values("dataset"), values("structure")
+    return (f"{len(ds)} dataset(s) ({', '.join(ds)}) × {len(st)} structure(s) ({', '.join(st)}) × "
+            f"orders {orders_text}")
+
+
+def describe_sweep(client, parent_id: str) -> None:
+    """Describe a sweep's parent run (Markdown): what was swept and how the runs ended; with its ranking run
+    (tag ``ranking_run``) the best model, the top four with links and the cautions; also its source."""
+    from maglev.study import tracking
+
+    parent = client.get_run(parent_id)
+    exp, name = parent.info.experiment_id, parent.data.tags.get("sweep") or parent.info.run_name
+    kids = [r for r in tracking.children(client, exp, parent_id) if r.data.tags.get("kind") == "model"]
+    counts: dict[str, int] = {}
+    for r in kids:
+        counts[r.info.status] = counts.get(r.info.status, 0) + 1
+    status = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "none yet"
+    head = f"Sweep {name}: {len(kids)} model runs ({status})"
+    head += f" of {swept(kids)}." if kids else "."
+    overrides = parent.data.tags.get("hydra.overrides", "")
+    parts = [head, f"Launched with `python study.py -m {overrides}`." if overrides else ""]
+    ranking_id = parent.data.tags.get("ranking_run")
+    ranking = client.get_run(ranking_id) if ranking_id else None
+    top = artifact_bytes(client, ranking_id, "ranking/top4.csv") if ranking else None
+    if top is not None:
+        table = pd.read_csv(io.BytesIO(top))
+        best = table.iloc[0]
+        parts[0] += (f" Best {best['name']} with one-step validation FIT {best['val_fit']:.2f} % "
+                     f"(ranking run {_link(exp, ranking_id, ranking.info.run_name)}).")
+        parts.append("### Top four\n\n" + top_markdown(exp, table))
+        cautions_ = artifact_json(client, ranking_id, "cautions/cautions.json") or []
+        parts.append(f"### Cautions ({len(cautions_)})\n\n" + ("".join(f"- {c['text']}\n" for c in cautions_)
+                                                               or "No caution applies.\n"))
+    else:
+        parts.append(f"Not ranked yet: `maglev rank --parent {parent_id}`.")
+    parts.append("Lab-level steps (working region, rise time and Ts, output spectrum, α*): metrics `lab.*` and "
+                 "figures under `lab/`.")
+    tracking.log_batch(client, parent_id, tags={tracking.NOTE: "\n\n".join(p for p in parts if p) + "\n",
+                                                **tracking.source_tags("study.py")})
+
+
 def ui_hint(sweep: Sweep, run_id: str) -> str:
-    """How to look at a run in the MLflow UI."""
+    """How to look at a run in the MLflow UI (``maglev ui`` starts it on a local store)."""
+    from maglev.study.tracking import run_link
+
+    link = run_link(sweep.experiment_id, run_id)
     if sweep.uri.startswith("sqlite:///"):
-        return (f"mlflow ui --backend-store-uri {sweep.uri}   # then open "
-                f"http://127.0.0.1:5000/#/experiments/{sweep.experiment_id}/runs/{run_id}")
-    return f"{sweep.uri.rstrip('/')}/#/experiments/{sweep.experiment_id}/runs/{run_id}"
+        return f"maglev ui --tracking-uri {sweep.uri}   # then open http://127.0.0.1:5000/{link}"
+    return f"{sweep.uri.rstrip('/')}/{link}"

@@ -5,7 +5,9 @@ the run, re-applies the schema, recomputes the identification without MLflow and
 compares every metric except timings (``fit_seconds``) exactly.  ``--log`` also logs
 the reproduction as a new run tagged ``reproduces=RUN_ID`` (``kind=reproduction``).
 The run's ``git_commit`` tag says which code produced it; a different checkout is
-reported.
+reported.  A wrong id, a run that is not a model run (a sweep parent, a ranking) or one
+that did not finish raises :class:`~maglev.study.store.SweepError` with one line saying
+what the run is (the command prints it and exits 2).
 """
 
 from __future__ import annotations
@@ -18,18 +20,66 @@ def same(a: float, b: float) -> bool:
     return a == b or (math.isnan(a) and math.isnan(b))
 
 
-def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool = False) -> tuple[bool, list]:
-    """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id``."""
+def open_client(uri: str):
+    """A client on an existing store (a missing SQLite file is an error, never created)."""
     from mlflow import MlflowClient
-    from omegaconf import OmegaConf
 
+    from maglev.study.store import SweepError
+    from maglev.study.tracking import sqlite_path
+
+    db = sqlite_path(uri)
+    if db is not None and not db.is_file():
+        raise SweepError(f"no MLflow store at {db}; pass --tracking-uri")
+    return MlflowClient(tracking_uri=uri)
+
+
+def model_run(client, run_id: str, uri: str):
+    """The run ``run_id`` if it is a FINISHED model run; else a one-line :class:`SweepError` saying what it is."""
+    from mlflow.exceptions import MlflowException
+
+    from maglev.study.store import SweepError
+
+    try:
+        run = client.get_run(run_id)
+    except MlflowException as exc:
+        if exc.error_code in ("RESOURCE_DOES_NOT_EXIST", "INVALID_PARAMETER_VALUE"):
+            raise SweepError(f"no run {run_id!r} in {uri}") from None
+        raise SweepError(f"cannot read run {run_id!r} from {uri}: {exc.message.splitlines()[0]}") from None
+    kind, name = run.data.tags.get("kind"), run.info.run_name
+    if kind != "model":
+        what = {"sweep": "a sweep's parent run", "ranking": "a ranking run",
+                "reproduction": "a reproduction"}.get(kind, "not a run of the study")
+        raise SweepError(f"run {run_id} ({name}) is {what}, not a model run; give the id of one of "
+                         "its model runs (tags.kind = 'model')")
+    if run.info.status != "FINISHED":
+        why = run.data.tags.get("error", "")
+        raise SweepError(f"run {run_id} ({name}) is {run.info.status}, not FINISHED: nothing to reproduce"
+                         + (f" ({why.splitlines()[0][:200]})" if why else ""))
+    return run
+
+
+def recompute(cfg: dict, logged: dict[str, float]):
+    """(identical?, rows of (metric, logged, recomputed), run output): ``cfg``'s run again
+    without MLflow, every logged metric but the timings compared exactly."""
     from maglev.study import tracking
-    from maglev.study.config import config_hash, plain_config
     from maglev.study.identify import TIMING_METRICS, identify
 
-    client = MlflowClient(tracking_uri=uri)
-    run = client.get_run(run_id)
-    cfg = plain_config(OmegaConf.create(tracking.download_text(client, run_id, "config/config.yaml")))
+    out = identify(cfg)
+    recomputed = {**out.metrics, **tracking.key_metrics(out.metrics)}
+    rows = [(key, logged[key], tracking._finite(recomputed.get(key, math.nan)))
+            for key in sorted(logged) if key not in TIMING_METRICS]
+    return all(same(a, b) for _, a, b in rows) and bool(rows), rows, out
+
+
+def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool = False) -> tuple[bool, list]:
+    """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id``."""
+    from maglev.study import tracking
+    from maglev.study.config import config_hash
+    from maglev.study.store import run_config
+
+    client = open_client(uri)
+    run = model_run(client, run_id, uri)
+    cfg = run_config(client, run_id)
     if data_dir:
         cfg["data_dir"] = data_dir
     logged_hash = run.data.tags.get("config_hash")
@@ -39,14 +89,7 @@ def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool 
     now = tracking.git_info()["git_commit"]
     if commit and commit != now:
         print(f"note: run made at commit {commit[:10]}, this checkout is {now[:10]}", file=sys.stderr)
-    out = identify(cfg)
-    rows = []
-    for key in sorted(run.data.metrics):
-        if key in TIMING_METRICS:
-            continue
-        new = out.metrics.get(key, math.nan)
-        rows.append((key, run.data.metrics[key], tracking._finite(new)))
-    ok = all(same(a, b) for _, a, b in rows) and bool(rows)
+    ok, rows, out = recompute(cfg, run.data.metrics)
     if log_run:
         client2, exp_id = tracking.connect(cfg["tracking"] | {"uri": uri})
         rid = client2.create_run(exp_id, run_name=f"reproduce {run.info.run_name}",

@@ -162,6 +162,7 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
                 exp_id = client.get_experiment_by_name(name).experiment_id
         else:
             exp_id = exp.experiment_id
+    tag_experiment(client, exp_id)
     return client, exp_id
 
 
@@ -253,6 +254,131 @@ def reference(client: MlflowClient, run, parent: str | None, sweep: str) -> None
     """Make ``run`` (of another sweep, or none) part of the sweep ``parent`` as well (``sweep_ref.<parent>``)."""
     if parent and run.data.tags.get("mlflow.parentRunId") != parent:
         client.set_tag(run.info.run_id, f"{REF_PREFIX}{parent}", sweep or "sweep")
+
+
+# ---------------------------------------------------------------------------- how the UI shows the study
+EXPERIMENT_KIND = "custom_model_development"  # MLflow 3: "model training", not GenAI (mlflow.experimentKind)
+NOTE = "mlflow.note.content"  # a run's or experiment's description (Markdown; the table shows its start raw)
+SHARE_KEY = "maglev"  # the runs table's shared view: experiment tag mlflow.sharedViewState.<key>
+# the metrics a user compares first, also logged under a common prefix so that they sort and filter together,
+# rounded to what the table can show (``key.<name>``: (the schema's metric, decimals); the schema's names and
+# full values stay the contract)
+KEY_METRICS = {"key.val_fit": ("val_fit", 2), "key.sim_fit": ("val_fit_sim", 2),
+               "key.naive_fit": ("val_fit_naive", 2), "key.white_p": ("whiteness_pvalue", 4),
+               "key.indep_p": ("independence_pvalue", 4), "key.n_params": ("n_params", 0)}
+UI_PARAMS = "workflowType=machine_learning"  # the UI's query parameter for model-training mode
+
+
+def key_metrics(metrics: dict) -> dict:
+    """The ``key.*`` copies of a run's metrics (those it has), rounded."""
+    return {k: round(float(metrics[m]), digits) for k, (m, digits) in KEY_METRICS.items() if m in metrics}
+
+
+def shared_view(search_filter: str | None = None) -> dict:
+    """The runs table as the UI restores it from ``?viewStateShareKey=``: the key metrics first, sorted by
+    ``val_fit`` (unrounded, so in the ranking's order), the run name wide enough for
+    ``armax 3-3-3-2 · real_binary_signal_2``."""
+    metrics = [f"metrics.`{k}`" for k in KEY_METRICS]
+    attrs = ["attributes.`Dataset`", "attributes.`Description`", "attributes.`Source`"]
+    view = {"selectedColumns": metrics + attrs,
+            "columnOrder": ["attributes.`Run Name`", *metrics, *attrs],
+            "columnWidths": {"attributes.`Run Name`": 290, "attributes.`Dataset`": 240,
+                             "attributes.`Description`": 400},
+            "orderByKey": "metrics.`val_fit`", "orderByAsc": False}
+    if search_filter:
+        view["searchFilter"] = search_filter
+    return view
+
+
+def experiment_url(base: str, exp_id: str, share_key: str = SHARE_KEY) -> str:
+    """The experiment's runs table in model-training mode with a shared view (``base``: the UI's address)."""
+    return f"{base.rstrip('/')}/#/experiments/{exp_id}/runs?{UI_PARAMS}&viewStateShareKey={share_key}"
+
+
+def run_link(exp_id: str, run_id: str) -> str:
+    """A link to a run's page that works inside a description (relative to the UI's address)."""
+    return f"#/experiments/{exp_id}/runs/{run_id}?{UI_PARAMS}"
+
+
+EXPERIMENT_NOTE = """maglev study: identified models of the magnetic levitator (u: coil current in A, y: upper \
+magnet height in cm), one run per dataset × structure × orders.
+
+- `kind=model` runs: one model each; its description says how it fits and whether its residuals pass.
+- `kind=sweep` runs: a sweep's parent, with the lab-level steps and the top four.
+- `kind=ranking` runs: a sweep's ranking, its comparisons and the lab report.
+
+Columns `key.*` (rounded copies of the run's metrics): one-step validation FIT %, simulation FIT %, the naive \
+y(t-1) FIT %, the whiteness and independence p-values (pass at p ≥ 0.01) and the number of parameters. \
+`maglev ui` opens this table with them.
+"""
+
+
+def tag_experiment(client: MlflowClient, exp_id: str, share: dict[str, dict] | None = None) -> None:
+    """Tag the experiment for the UI: model-training kind, the shared view(s) (``share``: key -> view;
+    default the whole experiment's) and a description unless it has one; writes only what differs."""
+    tags = client.get_experiment(exp_id).tags
+    wanted = {"mlflow.experimentKind": EXPERIMENT_KIND}
+    for key, view in (share or {SHARE_KEY: shared_view()}).items():
+        wanted[f"mlflow.sharedViewState.{key}"] = json.dumps(view, sort_keys=True)
+    if NOTE not in tags:
+        wanted[NOTE] = EXPERIMENT_NOTE
+    for key, value in wanted.items():
+        if tags.get(key) != value:
+            client.set_experiment_tag(exp_id, key, value)
+
+
+def source_tags(entry: str) -> dict[str, str]:
+    """The tags the UI's Source, Version and User columns show (``MlflowClient.create_run`` sets none)."""
+    import getpass
+
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):
+        user = "unknown"
+    return {"mlflow.source.name": entry, "mlflow.source.type": "LOCAL",
+            "mlflow.source.git.commit": git_info()["git_commit"], "mlflow.user": user}
+
+
+# ---------------------------------------------------------------------------- dataset inputs
+def data_digest(data) -> str:
+    """Eight hex digits identifying a record's samples and sampling period (an ``IOData``)."""
+    import hashlib
+
+    h = hashlib.sha1(data.u.tobytes())
+    h.update(data.y.tobytes())
+    h.update(repr(float(data.Ts)).encode())
+    return h.hexdigest()[:8]
+
+
+def dataset_entity(data, source: str | None, spec: dict | None = None):
+    """An MLflow dataset for an ``IOData`` part: name, digest, source (a file path: ``local``; else the
+    simulator, as code), schema ``u``, ``y`` and a profile with N, Ts, offsets and the units."""
+    from mlflow.entities import Dataset
+
+    from maglev.plots import U_UNIT, Y_UNIT
+
+    if source:
+        kind, where = "local", json.dumps({"uri": source})
+    else:
+        kind, where = "code", json.dumps({"tags": {"mlflow.source.name": "maglev.labdata"}})
+    schema = {"mlflow_colspec": [{"name": "u", "type": "double"}, {"name": "y", "type": "double"}]}
+    profile = {"num_rows": data.N, "Ts_s": data.Ts, "u_unit": U_UNIT, "y_unit": Y_UNIT,
+               "u_offset": data.u_offset, "y_offset": data.y_offset, **({"spec": spec} if spec else {})}
+    return Dataset(name=data.name, digest=data_digest(data), source_type=kind, source=where,
+                   schema=json.dumps(schema), profile=json.dumps(profile, default=str))
+
+
+def log_dataset_inputs(client: MlflowClient, run_id: str, est, val, source: str | None = None,
+                       spec: dict | None = None) -> None:
+    """Log the estimation and validation data as the run's dataset inputs (context ``estimation`` /
+    ``validation``): the UI's Dataset column and dataset views.  ``client.log_inputs``, not
+    ``mlflow.log_input``, which would start an implicit run."""
+    from mlflow.entities import DatasetInput, InputTag
+    from mlflow.utils.mlflow_tags import MLFLOW_DATASET_CONTEXT
+
+    client.log_inputs(run_id, datasets=[
+        DatasetInput(dataset_entity(part, source, spec), tags=[InputTag(MLFLOW_DATASET_CONTEXT, context)])
+        for part, context in ((est, "estimation"), (val, "validation"))])
 
 
 # ---------------------------------------------------------------------------- provenance

@@ -1,15 +1,21 @@
-"""``maglev ui``: the MLflow UI on the project's store, started lightly, opened on the latest sweep.
+"""``maglev ui``: the MLflow UI on the project's store, started lightly, opened on the latest sweep's runs.
 
 ``mlflow ui`` as documented starts four web workers and seven job processes (≈ 3 GB,
 ≈ 80 s to answer on two cores); the job runner only serves MLflow's GenAI features.
 Here the server runs with one worker, without job execution, bound to 127.0.0.1 (no
-authentication: never bind a shared address without protection, see the README), and
-the URL printed opens the experiment's runs on the latest sweep's parent.
+authentication: never bind a shared address without protection, see the README).
+
+The URL printed opens the runs table in "model training" mode (the query parameter
+``workflowType=machine_learning``: MLflow 3.17 ignores the experiment's
+``mlflow.experimentKind`` tag) with a shared view (``viewStateShareKey``, an experiment
+tag ``mlflow.sharedViewState.<key>``): the latest sweep's runs, the ``key.*`` metrics as
+the first columns, sorted by ``val_fit``.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -39,18 +45,33 @@ def wait_healthy(base: str, proc: subprocess.Popen | None = None, timeout: float
     return False
 
 
+def sweep_share_key(name: str) -> str:
+    """The shared-view key of a sweep's runs (URL- and tag-safe)."""
+    return "sweep-" + re.sub(r"[^A-Za-z0-9_-]", "_", name)
+
+
 def landing_url(base: str, uri: str, experiment: str) -> str:
-    """The experiment's runs page, on the latest sweep's parent run when there is one."""
+    """The experiment's runs table in model-training mode, showing the latest sweep's runs when there is one
+    (its shared view is written to the experiment here)."""
     from maglev.study.store import SweepError, find_parent, open_store
+    from maglev.study.tracking import SHARE_KEY, UI_PARAMS, experiment_url, shared_view, tag_experiment
 
     try:
         client, exp_id = open_store(uri, experiment)
     except SweepError:
-        return base
+        return f"{base}/#/?{UI_PARAMS}"
+    views = {SHARE_KEY: shared_view()}
     try:
-        return f"{base}/#/experiments/{exp_id}/runs/{find_parent(client, exp_id).info.run_id}"
+        parent = find_parent(client, exp_id)
     except SweepError:
-        return f"{base}/#/experiments/{exp_id}"
+        parent = None
+    key = SHARE_KEY
+    if parent is not None:
+        name = parent.data.tags.get("sweep") or parent.info.run_name
+        key = sweep_share_key(name)
+        views[key] = shared_view("tags.sweep = '{}'".format(name.replace("'", "\\'")))
+    tag_experiment(client, exp_id, share=views)
+    return experiment_url(base, exp_id, key)
 
 
 def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) -> int:
@@ -58,17 +79,28 @@ def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) 
     if uri.startswith(("http://", "https://")):
         print(f"MLflow UI: {landing_url(uri.rstrip('/'), uri, experiment)}")
         return 0
+    from maglev.study.tracking import sqlite_path
+
+    db = sqlite_path(uri)
+    if db is not None and not db.is_file():  # the server would create (and migrate) it unlocked
+        print(f"maglev ui: no MLflow store at {db}; run a sweep first (python study.py -m +sweep=lab) "
+              "or pass --tracking-uri", file=sys.stderr)
+        return 2
     base = f"http://{host}:{port}"
     env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
-    proc = subprocess.Popen(server_command(uri, host, port), env=env)
+    proc = subprocess.Popen(server_command(uri, host, port), env=env, stdout=2)  # stdout: only the URL
     try:
+        url = landing_url(base, uri, experiment)  # while the server starts
         if not wait_healthy(base, proc):
-            proc.terminate()
-            print(f"maglev ui: the MLflow server on {base} did not start (exit {proc.poll()})", file=sys.stderr)
+            why = (f"exited with status {proc.poll()}" if proc.poll() is not None
+                   else f"did not answer within {HEALTH_TIMEOUT_S:g} s")
+            print(f"maglev ui: the MLflow server on {base} {why}", file=sys.stderr)
             return 2
-        print(f"MLflow UI: {landing_url(base, uri, experiment)}   (Ctrl-C stops it)", flush=True)
+        print(f"MLflow UI: {url}   (Ctrl-C stops it)", flush=True)
         return proc.wait()
     except KeyboardInterrupt:
-        proc.terminate()
-        proc.wait(timeout=20)
         return 0
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            proc.wait(timeout=20)

@@ -33,7 +33,8 @@ def test_working_region_figure_marks_the_region_and_the_working_point():
     assert _vertical_lines(ax) == [3.0, 5.0, 7.0]  # u_min, u*, u_max
     filled = [ln for ln in ax.get_lines() if ln.get_marker() == "s" and ln.get_markerfacecolor() != "none"]
     assert list(filled[0].get_xdata()) == list(wr.u_bar[wr.lo:wr.hi + 1])
-    assert "[3, 7]" in ax.get_title()
+    assert "[3, 7] A" in ax.get_title()
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("step level ū (A)", "stationary output ȳ (cm)")
 
 
 def test_rise_time_figure_draws_the_averaged_response_and_its_crossings():

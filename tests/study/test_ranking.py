@@ -142,6 +142,57 @@ def test_rank_cli_logs_the_ranking_run(store, capsys):
     assert set(comp["name"]) == {n for n, spec in RUNS.items() if spec[0] == "bj"}
 
 
+def test_ranking_twice_reuses_the_ranking_run_and_force_logs_a_new_one(store, capsys):
+    from mlflow import MlflowClient
+
+    from maglev.study.cli import main
+
+    uri, ids = store
+    client = MlflowClient(tracking_uri=uri)
+    exp = client.get_experiment_by_name("maglev").experiment_id
+
+    def rankings() -> list[str]:
+        return [r.info.run_id for r in client.search_runs([exp], filter_string="tags.kind = 'ranking'")]
+
+    assert main(["rank", "--tracking-uri", uri]) == 0
+    before = rankings()
+    assert main(["rank", "--tracking-uri", uri]) == 0
+    assert rankings() == before and "(reused: it ranked these same runs; --force logs a new one)" in \
+        capsys.readouterr().out
+    assert main(["rank", "--tracking-uri", uri, "--force"]) == 0
+    [new] = set(rankings()) - set(before)
+    assert client.get_run(ids["parent"]).data.tags["ranking_run"] == new
+
+    # the ranking run and the parent say what was ranked, with names and links, not bare ids
+    run = client.get_run(new)
+    link = lambda name: f"[{name.replace('[', '(').replace(']', ')')}](#/experiments/{exp}/runs/{ids[name]}?"  # noqa: E731
+    assert (run.data.tags["best_run_name"], run.data.tags["worst_run_name"]) == (EXPECTED[0], EXPECTED[-1])
+    note = run.data.tags["mlflow.note.content"]
+    assert note.startswith(f"Ranking of sweep s: {len(RUNS)} FINISHED model runs by one-step validation FIT "
+                           f"(ties to fewer parameters), 1 FAILED, 1 RUNNING not ranked. Best {EXPECTED[0]} (97.50 %), "
+                           f"worst {EXPECTED[-1]} (80.00 %).")
+    top = note[note.index("### Top four"):note.index("### Cautions")]
+    assert [top.index(link(n)) for n in EXPECTED[:4]] == sorted(top.index(link(n)) for n in EXPECTED[:4])
+    assert link(EXPECTED[4]) not in top and "### Cautions (" in note
+    parent = client.get_run(ids["parent"]).data.tags["mlflow.note.content"]
+    assert parent.startswith(f"Sweep s: {len(RUNS) + 2} model runs (1 FAILED, {len(RUNS)} FINISHED, 1 RUNNING) of ")
+    assert f"Best {EXPECTED[0]} with one-step validation FIT 97.50 %" in parent
+    assert all(link(n) in parent for n in EXPECTED[:4]) and "### Cautions (" in parent
+
+
+def test_reproduce_refuses_what_it_cannot_reproduce_in_one_line(store, capsys):
+    from maglev.study.cli import main
+
+    uri, ids = store
+    failed = ids["arx[9 9 2] · uniform_wide"]
+    for run_id, message in [("nonsense", f"no run 'nonsense' in {uri}"),
+                            (ids["parent"], f"run {ids['parent']} (s) is a sweep's parent run, not a model run"),
+                            (failed, f"run {failed} (arx[9 9 2] · uniform_wide) is FAILED, not FINISHED")]:
+        assert main(["reproduce", run_id, "--tracking-uri", uri]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"maglev reproduce: {message}"), err
+
+
 def test_structure_option_and_its_errors(store, capsys):
     from maglev.study.cli import main
 

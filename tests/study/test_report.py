@@ -49,7 +49,7 @@ def ranked(runs) -> list:
 def test_sweep_ends_with_ranking_run_and_prints_where_things_are(lab_sweep):
     store, reports, out = lab_sweep
     assert "ranking run:" in out and f"report:      {report_file(reports)}" in out
-    assert f"mlflow ui --backend-store-uri sqlite:///{store}/mlflow.db" in out
+    assert f"maglev ui --tracking-uri sqlite:///{store}/mlflow.db" in out
     client, _, runs = all_runs(store)
     parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
     [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
@@ -57,6 +57,13 @@ def test_sweep_ends_with_ranking_run_and_prints_where_things_are(lab_sweep):
     order = ranked(runs)
     assert ranking.data.tags["best_run"] == order[0].info.run_id
     assert ranking.data.tags["worst_run"] == order[-1].info.run_id
+    best = order[0]
+    # the sweep's end describes the parent with its ranking (the callbacks' real order), the ranking run too
+    assert parent.data.tags["mlflow.note.content"].startswith(f"Sweep lab: {len(order)} model runs ({len(order)} "
+                                                              "FINISHED) of 3 dataset(s) ")
+    assert (f"Best {best.info.run_name} with one-step validation FIT {best.data.metrics['val_fit']:.2f} % "
+            f"(ranking run [ranking · lab](#/experiments/") in parent.data.tags["mlflow.note.content"]
+    assert ranking.data.tags["mlflow.note.content"].startswith(f"Ranking of sweep lab: {len(order)} FINISHED model runs")
     top_lines = [ln for ln in out.splitlines() if re.match(r"\s+[1-4]\.\s", ln)]
     assert [next(r.info.run_name for r in order if r.info.run_name in ln) for ln in top_lines] == \
         [r.info.run_name for r in order[:4]]

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
+import urllib.request
+from pathlib import Path
 
 import pytest
 
-from .harness import LEAN, TINY, all_runs, artifact_paths, launch, study_log
+from .harness import LEAN, REPO, TINY, all_runs, artifact_paths, launch, study_log
 
 FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png", "figures/step.png"}
 
@@ -64,7 +67,7 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
         assert FIGURES | {"config/config.yaml", "config/hydra/config.yaml", "config/hydra/overrides.yaml",
                           "model/model.json", "resid/resid.json"} <= paths
         names.add(r.info.run_name)
-    assert "oe[2 2 2] · binary_a025" in names
+    assert "oe 2-2-2 · binary_a025" in names
 
 
 def test_sweep_logs_progress_as_jobs_done_of_total(sweep):
@@ -101,6 +104,106 @@ def test_model_and_resid_artifacts_are_loadable(sweep):
     assert res["whiteness_pvalue"] == r.data.metrics["whiteness_pvalue"]
 
 
+def test_runs_explain_themselves_in_the_ui(sweep):
+    """Dataset inputs, descriptions, source, key.* columns and readable names on every model run; the
+    parent described; the experiment tagged for the UI's model-training mode with its shared view."""
+    from maglev.study.datasets import load
+    from maglev.study.store import run_config
+    from maglev.study.tracking import SHARE_KEY, data_digest
+
+    store, _, _ = sweep
+    client, exp_id, runs = all_runs(store)
+    tags = client.get_experiment(exp_id).tags
+    assert tags["mlflow.experimentKind"] == "custom_model_development"
+    view = json.loads(tags[f"mlflow.sharedViewState.{SHARE_KEY}"])
+    assert view["orderByKey"] == "metrics.`val_fit`" and not view["orderByAsc"]
+    for r in (r for r in runs if r.data.tags.get("kind") == "model"):
+        t, m = r.data.tags, r.data.metrics
+        prep = load(run_config(client, r.info.run_id)["dataset"], "")
+        inputs = {i.tags[0].value: i.dataset for i in r.inputs.dataset_inputs}
+        assert set(inputs) == {"estimation", "validation"}
+        for context, part in (("estimation", prep.est), ("validation", prep.val)):
+            ds = inputs[context]
+            assert (ds.name, ds.digest) == (part.name, data_digest(part))
+            profile = json.loads(ds.profile)
+            assert (profile["num_rows"], profile["u_unit"], profile["y_unit"]) == (part.N, "A", "cm")
+        assert inputs["validation"].name == t["val_dataset"] and prep.val.N == m["n_val"]
+        note = t["mlflow.note.content"]
+        assert note.startswith(f"{t['structure'].upper()} {t['orders']} on {t['dataset']}: 1-step validation FIT "
+                               f"{m['val_fit']:.2f} %")
+        assert ("Residuals white" if m["whiteness_pass"] else "Residuals not white") in note
+        assert t["mlflow.source.name"] == "study.py" and t["mlflow.source.git.commit"] == t["git_commit"]
+        assert {k: v for k, v in m.items() if k.startswith("key.")} == {  # the columns compared first, rounded
+            "key.val_fit": round(m["val_fit"], 2), "key.sim_fit": round(m["val_fit_sim"], 2),
+            "key.naive_fit": round(m["val_fit_naive"], 2), "key.white_p": round(m["whiteness_pvalue"], 4),
+            "key.indep_p": round(m["independence_pvalue"], 4), "key.n_params": 4}
+        structure, orders, _, dataset = r.info.run_name.split(" ")
+        assert (structure, orders.split("-"), dataset) == (t["structure"], t["orders"].strip("[]").split(),
+                                                          t["dataset"])
+        assert len(r.info.run_name) <= 26
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    assert parent.data.tags["mlflow.note.content"].startswith(
+        "Sweep tiny: 4 model runs (4 FINISHED) of 2 dataset(s) (uniform_narrow, binary_a025) × 2 structure(s) "
+        "(arx, oe) × orders 2.")
+    assert "Not ranked yet" in parent.data.tags["mlflow.note.content"]
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (Linux /proc)."""
+    kids = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        kids.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        for child in kids.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_maglev_ui_serves_the_store_lightly_opened_on_the_sweep_in_model_training_mode(sweep, tmp_path):
+    store, _, _ = sweep
+    uri = f"sqlite:///{store}/mlflow.db"
+    _, exp, _ = all_runs(store)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
+    with open(tmp_path / "ui.err", "w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "maglev", "ui", "--tracking-uri", uri, "--port", str(port)],
+                                stdout=subprocess.PIPE, stderr=err, text=True, cwd=REPO, env=env)
+    try:
+        line = proc.stdout.readline()  # printed once the server answers /health
+        base = f"http://127.0.0.1:{port}"
+        assert line.startswith(f"MLflow UI: {base}/#/experiments/{exp}/runs?workflowType=machine_learning"
+                               "&viewStateShareKey=sweep-tiny "), (line, (tmp_path / "ui.err").read_text()[-3000:])
+        server = descendants(proc.pid)
+        assert 1 <= len(server) <= 3  # one web worker, no job runner (the default starts 15 processes)
+        url = f"{base}/api/2.0/mlflow/experiments/get-by-name?experiment_name=maglev"
+        with urllib.request.urlopen(url, timeout=30) as r:
+            tags = {t["key"]: t["value"] for t in json.load(r)["experiment"]["tags"]}
+        assert tags["mlflow.experimentKind"] == "custom_model_development"
+        view = json.loads(tags["mlflow.sharedViewState.sweep-tiny"])  # the view the printed URL opens
+        assert view["searchFilter"] == "tags.sweep = 'tiny'" and view["orderByKey"] == "metrics.`val_fit`"
+        assert view["selectedColumns"][0] == "metrics.`key.val_fit`" and "attributes.`Dataset`" in view["selectedColumns"]
+    finally:
+        server = descendants(proc.pid)
+        proc.send_signal(signal.SIGINT)  # Ctrl-C: maglev ui stops its server
+        code = proc.wait(timeout=60)
+    assert code == 0 and not [pid for pid in server if alive(pid)]
+
+
 def test_reproduce_gives_identical_metrics(sweep, capsys):
     from maglev.study.cli import main
 
@@ -122,7 +225,13 @@ def test_relaunch_runs_nothing_new_and_reaps_stale_runs(sweep):
                                                               "pid": str(dead.pid)}).info.run_id
     with study_log() as lines:
         launch(store, *args)
-    assert sum(m.startswith("skip ") for m in lines) == 4
+    skips = [m for m in lines if m.startswith("skip ")]
+    assert len(skips) == 4
+    names = {r.info.run_id: r.info.run_name for r in before if r.data.tags.get("kind") == "model"}
+    for line in skips:  # which run holds the config, and how to run it anyway
+        run_id = next(i for i in names if i in line)
+        assert f"{names[run_id]!r} ({run_id}) already holds this config" in line
+        assert line.endswith("to run it again add study.skip_finished=false")
     client, _, after = all_runs(store)
     assert client.get_run(stale).info.status == "KILLED"
     finished = lambda runs: sorted(r.info.run_id for r in runs if r.data.tags.get("kind") == "model"  # noqa: E731

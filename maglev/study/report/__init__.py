@@ -19,7 +19,7 @@ import html
 from pathlib import Path
 
 from maglev.paths import reports_dir
-from maglev.study.ranking import Ranking, compute, log_ranking, top_text, ui_hint
+from maglev.study.ranking import Ranking, compute, log_ranking, previous_ranking_run, report_name, top_text, ui_hint
 from maglev.study.report import sections as sec
 from maglev.study.store import SweepError, artifact_bytes, artifact_json, load_model, load_sweep
 from maglev.study.tracking import log_files
@@ -83,12 +83,6 @@ def build(ranking: Ranking, ranking_run: str) -> str:
             "</body></html>\n")
 
 
-def report_name(sweep) -> str:
-    """``<sweep name>-<first 8 characters of its sweep_id>.html`` (of its parent run id for a parent without one)."""
-    sid = sweep.parent.data.tags.get("sweep_id") or sweep.parent_id
-    return f"{sweep.name}-{sid[:8]}.html"
-
-
 def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = None) -> Path:
     """Write the page (``out``: a file, a directory, or None for ``reports/``) and log it to the ranking run."""
     name = report_name(ranking.sweep)
@@ -105,12 +99,7 @@ def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = No
 def ranking_run_for(ranking: Ranking) -> str:
     """The latest FINISHED ranking run of the sweep that ranked exactly these runs; a new one if there is
     none (a ranking run killed half-way is never reused)."""
-    sweep = ranking.sweep
-    found = sweep.client.search_runs(
-        [sweep.experiment_id], order_by=["attributes.start_time DESC"], max_results=1,
-        filter_string=(f"tags.kind = 'ranking' and tags.sweep_parent = '{sweep.parent_id}' "
-                       f"and tags.ranked_hash = '{ranking.ranked_hash}' and attributes.status = 'FINISHED'"))
-    return found[0].info.run_id if found else log_ranking(ranking)
+    return previous_ranking_run(ranking) or log_ranking(ranking)
 
 
 def rank_and_report(uri: str, experiment: str, parent: str | None, structure: str | None = None,

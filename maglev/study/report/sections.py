@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from maglev.models import CANCEL_TOL
+from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.figures import orders_figure, png
 from maglev.study.ranking import validation_note
@@ -90,7 +91,7 @@ def working_region(lab: dict, lab_png: dict, ts_used: list[float]) -> str:
         f"within 5 % of the ȳ range from the least-squares line, every neighbour-to-neighbour slope within "
         f"0.5–1.5 times its slope) is <b>ū ∈ [{num(g('lab.u_min'))}, {num(g('lab.u_max'))}] A</b>: "
         "the working region.",
-        f"Least-squares slope in the region: {num(g('lab.slope'), 4)} (output units per A); "
+        f"Least-squares slope in the region: {num(g('lab.slope'), 4)} {Y_UNIT}/{U_UNIT}; "
         f"working point u* = (u_min + u_max)/2 = <b>{num(g('lab.u_star'))} A</b>.",
         f"10–90 % rise time of steps inside the region: {num(g('lab.rise_time_samples'), 1)} samples = "
         f"{num(1000 * g('lab.rise_time_s'), 1)} ms, so 4–10 samples per rise time means "
@@ -161,7 +162,9 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict) -> str:
     per_model["n_val"] = per_model["n_val"].astype("Int64")
     text = para("Each record: the start-up transient is trimmed, means removed, decimated to Ts, then split "
                 "— the first part estimates, the rest (never seen by the estimator) validates. Every model "
-                "is validated on the validation part of its own dataset (column val_dataset).")
+                "is validated on the validation part of its own dataset (column val_dataset). Units: u is the "
+                f"coil current command in {U_UNIT}, y the upper magnet's height in {Y_UNIT} (the rig's laser sensor "
+                f"after its two-point calibration); gains are in {Y_UNIT}/{U_UNIT}.")
     return section("data", "3. Data for estimation and validation", text, table(pd.DataFrame(rows)),
                    "<details><summary>Per model</summary>" + table(per_model) + "</details>")
 
