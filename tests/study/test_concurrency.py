@@ -16,8 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from .harness import LEAN, REPO, TINY, launch, store_overrides
-from .test_parallel import mlflow_server  # noqa: F401  (fixture)
+from .harness import LEAN, REPO, TINY, launch, process_env, store_overrides
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
 SMALL = ["dataset=binary_a025", *TINY, *LEAN]
@@ -26,7 +25,7 @@ SMALL = ["dataset=binary_a025", *TINY, *LEAN]
 def start(store: Path, *args: str, log: str = "study", rank: bool = False) -> subprocess.Popen:
     """``python study.py -m ARGS`` in its own process group, its output in ``store/<log>.log``; the
     end-of-sweep ranking only with ``rank=True`` (its report then goes to ``store/reports``)."""
-    env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
+    env = process_env()
     out = open(store / f"{log}.log", "w")
     cmd = [sys.executable, str(REPO / "study.py"), "-m", *args, *store_overrides(store),
            f"hydra.callbacks.maglev_rank.report_dir={store}/reports" if rank else "~hydra.callbacks.maglev_rank"]
@@ -160,13 +159,13 @@ def test_submitit_local_sweep_of_8_jobs_against_a_tracking_server(tmp_path, mlfl
     store.mkdir()
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "hydra/launcher=local", "tracking=server",
            f"tracking.uri={mlflow_server}", "dataset=binary_a025,uniform_narrow", "structure=arx",
-           "structure.order=2,3,4,5", *TINY, *LEAN, "study.name=sub8", f"hydra.sweep.dir={store}/multirun",
+           "structure.order=2,3,4,5", *TINY, *LEAN, "study.name=sub8", "tracking.experiment=cluster", f"hydra.sweep.dir={store}/multirun",
            f"hydra.callbacks.maglev_rank.report_dir={store}/reports"]
-    env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
+    env = process_env()
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=600, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     client = MlflowClient(tracking_uri=mlflow_server)
-    exp = client.get_experiment_by_name("maglev").experiment_id
+    exp = client.get_experiment_by_name("cluster").experiment_id
     everything = client.search_runs([exp], max_results=100)
     [parent] = [r for r in everything if r.data.tags.get("kind") == "sweep"]
     models = [r for r in everything if r.data.tags.get("kind") == "model"]

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from .harness import REPO, TINY, all_runs, artifact_paths, launch
+from .harness import REPO, TINY, all_runs, artifact_paths, launch, process_env
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
 
@@ -64,7 +64,7 @@ def test_a_closed_port_fails_at_once_in_one_line_naming_the_uri(tmp_path):
     uri = f"http://127.0.0.1:{closed_port()}"
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "tracking=server", f"tracking.uri={uri}",
            "dataset=binary_a025", "structure=arx,oe", *TINY, f"hydra.sweep.dir={tmp_path}/multirun"]
-    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    env = process_env("MLFLOW_")
     tic = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, timeout=120, env=env)
     elapsed = time.monotonic() - tic
