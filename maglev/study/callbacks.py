@@ -23,6 +23,7 @@ import hashlib
 import json
 import logging
 import os
+import signal
 import socket
 import time
 from pathlib import Path
@@ -225,13 +226,20 @@ class SweepCallback(Callback):
         """atexit: the sweep did not reach on_multirun_end (a job raised, Ctrl-C, SIGTERM)."""
         if self.parent is None:
             return
+        from maglev.study import shutdown
+
         render.abandon()
+        why = signal.Signals(shutdown.received).name if shutdown.received else "stopped before its end"
         try:
             if self.fresh and not tracking.children(self.client, self.exp_id, self.parent):
                 self.client.delete_run(self.parent)
+                log.warning("sweep stopped (%s) before any run: its parent run %s is deleted", why, self.parent)
             else:
                 self.client.set_terminated(self.parent, "KILLED")
-            self._reap_leftovers()
+                left = self._reap_leftovers()
+                log.warning("sweep stopped (%s): parent run %s KILLED%s; the same command again runs what is "
+                            "not FINISHED", why, self.parent,
+                            f", {len(left)} run(s) left RUNNING marked KILLED" if left else "")
         except Exception:  # noqa: BLE001 — best effort at interpreter exit
             pass
         finally:

@@ -23,6 +23,7 @@ import signal
 import threading
 
 _forward = False
+received: int | None = None  # the signal that is ending this process, once one has arrived
 
 
 def descendants(pid: int | None = None) -> list[int]:
@@ -51,7 +52,9 @@ def descendants(pid: int | None = None) -> list[int]:
 
 
 def _on_sigterm(signum, frame) -> None:
+    global received
     signal.signal(signum, signal.SIG_IGN)  # let the cleanup finish; SIGKILL still works
+    received = signum
     if _forward:
         for pid in descendants():
             try:

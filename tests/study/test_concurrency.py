@@ -43,13 +43,14 @@ def runs(store: Path, kind: str | None = None) -> list:
     return [r for r in found if kind is None or r.data.tags.get("kind") == kind]
 
 
-def wait_for_finished_model_run(store: Path, proc: subprocess.Popen, timeout: float = 240) -> None:
+def wait_for_model_runs(store: Path, proc: subprocess.Popen, *statuses: str, timeout: float = 240) -> None:
+    """Until the sweep has a model run in each of ``statuses`` at once (e.g. one FINISHED and one in flight)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and proc.poll() is None:
-        if (store / "mlflow.db").exists() and any(r.info.status == "FINISHED" for r in runs(store, "model")):
+        if (store / "mlflow.db").exists() and set(statuses) <= {r.info.status for r in runs(store, "model")}:
             return
-        time.sleep(0.3)
-    pytest.fail(f"no model run FINISHED (exit {proc.poll()}): {(store / 'study.log').read_text()[-3000:]}")
+        time.sleep(0.1)
+    pytest.fail(f"no model runs {statuses} (exit {proc.poll()}): {(store / 'study.log').read_text()[-3000:]}")
 
 
 def finished_once(models: list) -> Counter:
@@ -96,7 +97,7 @@ def test_sigterm_in_the_middle_of_a_sweep_leaves_no_run_running(migrated_store):
     in flight and the parent end KILLED at once, with no relaunch needed."""
     store = migrated_store
     proc = start(store, *SMALL, "structure=arx,oe,armax,bj", "structure.order=2,3")
-    wait_for_finished_model_run(store, proc)
+    wait_for_model_runs(store, proc, "FINISHED", "RUNNING")  # one done, one in flight
     tic = time.monotonic()
     proc.send_signal(signal.SIGTERM)
     code = proc.wait(timeout=120)
@@ -107,17 +108,18 @@ def test_sigterm_in_the_middle_of_a_sweep_leaves_no_run_running(migrated_store):
     assert not [r.info.run_name for r in everything if r.info.status == "RUNNING"]
     [parent] = [r for r in everything if r.data.tags.get("kind") == "sweep"]
     assert parent.info.status == "KILLED"
+    assert f"sweep stopped (SIGTERM): parent run {parent.info.run_id} KILLED" in (store / "study.log").read_text()
     models = [r for r in everything if r.data.tags.get("kind") == "model"]
     assert 1 <= len(finished_once(models)) < 8 and {r.info.status for r in models} <= {"FINISHED", "KILLED"}
-    killed = [r for r in models if r.info.status == "KILLED"]
-    assert all(r.data.tags["error"] == "SystemExit: 143" for r in killed), [r.data.tags for r in killed]
+    killed = [r for r in models if r.info.status == "KILLED"]  # the run in flight, by its own handler
+    assert killed and all(r.data.tags["error"] == "SystemExit: 143" for r in killed), [r.data.tags for r in killed]
 
 
 def test_kill_9_in_the_middle_of_a_sweep_then_a_relaunch_finishes_every_config_once(migrated_store):
     store = migrated_store
     args = [*SMALL, "structure=arx,oe", "structure.order=2,3,4,5"]
     proc = start(store, *args)
-    wait_for_finished_model_run(store, proc)
+    wait_for_model_runs(store, proc, "FINISHED")
     os.killpg(proc.pid, signal.SIGKILL)  # the launcher and its figure renderers, as the OOM killer or Slurm would
     proc.wait(timeout=60)
     assert len(finished_once(runs(store, "model"))) < 8  # killed in the middle
