@@ -95,7 +95,7 @@ def is_http(uri: str) -> bool:
 def http_settings(max_retries: int, timeout_s: int, override: bool = True) -> None:
     """Bound MLflow's HTTP retries (it reads these variables on every request; workers inherit them).
 
-    ``max_retries`` retries with back-off 1, 2, 4 … s and ``timeout_s`` per attempt (MLflow
+    ``max_retries`` retries (urllib3 waits 0, 2, 4 … s between attempts) and ``timeout_s`` per attempt (MLflow
     takes whole seconds, at most 10 retries).  ``override=False`` keeps values the user set.
     """
     values = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": str(int(max_retries)), "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
