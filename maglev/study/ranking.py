@@ -380,7 +380,9 @@ def describe_sweep(client, parent_id: str) -> None:
         counts[r.info.status] = counts.get(r.info.status, 0) + 1
     status = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "none yet"
     head = f"Sweep {name}: {len(kids)} model runs ({status})"
-    head += f" of {swept(kids)}." if kids else "."
+    head += f" of {swept(kids)}" if kids else ""
+    refs = tracking.referenced(client, exp, parent_id)  # configs other sweeps had run: ranked here too
+    head += f", and {len(refs)} run(s) of other sweeps with the same configs." if refs else "."
     overrides = parent.data.tags.get("hydra.overrides", "")
     parts = [head, f"Launched with `python study.py -m {overrides}`." if overrides else ""]
     ranking_id = parent.data.tags.get("ranking_run")

@@ -86,6 +86,7 @@ def test_two_launches_at_once_run_every_config_once_into_a_fresh_then_an_existin
     rankings = [r for r in runs(tmp_path, "ranking") if r.data.tags["sweep_parent"] == new.info.run_id]
     assert len(rankings) == 1 and rankings[0].data.metrics["n_ranked"] == 3  # incl. the 2 of the first sweep
     assert new.data.metrics["runs_finished"] == 1 and new.data.metrics["runs_referenced"] == 2
+    assert ", and 2 run(s) of other sweeps with the same configs." in new.data.tags["mlflow.note.content"]
     reports = sorted(p.name for p in (tmp_path / "reports").glob("*.html"))
     assert reports == sorted(f"twin-{p.data.tags['sweep_id'][:8]}.html" for p in parents)
     assert main(["rank", "--tracking-uri", f"sqlite:///{tmp_path}/mlflow.db"]) == 0
