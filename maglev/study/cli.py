@@ -106,8 +106,8 @@ def _forward(module: str) -> Callable[[list[str]], int]:
 
 
 # the simulator's commands keep their own options (they live below the study layer)
-FORWARDED = {"labdata": ("maglev.labdata", "write the simulated lab dataset (.mat and .csv)"),
-             "calibrate": ("maglev.calibrate", "refit the simulator to the real records and print sim vs real")}
+FORWARDED = {"labdata": ("maglev.sim.labdata", "write the simulated lab dataset (.mat and .csv)"),
+             "calibrate": ("maglev.sim.calibrate", "refit the simulator to the real records and print sim vs real")}
 
 
 def parser() -> argparse.ArgumentParser:

@@ -26,7 +26,7 @@ from maglev.study.cautions import Caution, cautions
 from maglev.study.store import (Sweep, SweepError, artifact_bytes, artifact_json, dataset_configs, load_model,
                                 run_config)
 from maglev.study.tracking import log_files
-from maglev.validate import ResidResult
+from maglev.validation import ResidResult
 
 TOP = 4
 TABLE_COLUMNS = ["rank", "name", "structure", "orders", "dataset", "input_class", "val_fit", "val_fit_naive",
@@ -98,7 +98,7 @@ def common_validation(configs: dict[str, dict], runs: pd.DataFrame, models: dict
     (``configs``: dataset name -> a run config).  A cell is NaN when the sampling periods differ.
     """
     from maglev.study.datasets import load
-    from maglev.validate import compare
+    from maglev.validation import compare
 
     names = sorted(set(runs["dataset"]))
     data = {n: load(configs[n]["dataset"], configs[n]["data_dir"]) for n in names}
@@ -154,7 +154,7 @@ def run_resid(sweep: Sweep, row: pd.Series, model):
     if logged is not None:
         return ResidResult.from_dict(logged)
     from maglev.study.datasets import load
-    from maglev.validate import resid
+    from maglev.validation import resid
 
     cfg = run_config(sweep.client, row["run_id"])
     prep = load(cfg["dataset"], cfg["data_dir"])

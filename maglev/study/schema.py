@@ -56,7 +56,7 @@ class PreprocessCfg:
 
 @dataclass
 class SimDatasetCfg:
-    """A lab experiment run on the simulator (``maglev.labdata``)."""
+    """A lab experiment run on the simulator (``maglev.sim.labdata``)."""
 
     name: str = MISSING
     source: str = "sim"

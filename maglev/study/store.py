@@ -187,7 +187,7 @@ def run_config(client, run_id: str) -> dict:
 
 def load_model(client, run_id: str):
     """The run's fitted ``PolyModel`` (``model/model.json``)."""
-    from maglev.models import PolyModel
+    from maglev.model import PolyModel
 
     raw = artifact_bytes(client, run_id, "model/model.json")
     if raw is None:

@@ -360,7 +360,7 @@ def dataset_entity(data, source: str | None, spec: dict | None = None):
     if source:
         kind, where = "local", json.dumps({"uri": source})
     else:
-        kind, where = "code", json.dumps({"tags": {"mlflow.source.name": "maglev.labdata"}})
+        kind, where = "code", json.dumps({"tags": {"mlflow.source.name": "maglev.sim.labdata"}})
     schema = {"mlflow_colspec": [{"name": "u", "type": "double"}, {"name": "y", "type": "double"}]}
     profile = {"num_rows": data.N, "Ts_s": data.Ts, "u_unit": U_UNIT, "y_unit": Y_UNIT,
                "u_offset": data.u_offset, "y_offset": data.y_offset, **({"spec": spec} if spec else {})}

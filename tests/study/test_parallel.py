@@ -44,7 +44,7 @@ def test_server_mode_runs_are_listed_by_the_rest_api(tmp_path, mlflow_server):
     store = tmp_path / "client"
     store.mkdir()
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "tracking=server", f"tracking.uri={mlflow_server}",
-           "dataset=uniform_narrow", "structure=arx,oe", *TINY,
+           "dataset=uniform_narrow", "structure=arx,oe", *TINY, "study.true_plant=false", "lab.enabled=false",
            f"hydra.sweep.dir={store}/multirun", f"hydra.run.dir={store}/outputs",
            f"hydra.callbacks.maglev_rank.report_dir={store}/reports"]  # ranking via the server too
     env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}

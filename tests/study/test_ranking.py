@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from maglev.models import PolyModel
+from maglev.model import PolyModel
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
 
@@ -256,7 +256,7 @@ def test_markdown_table_escapes_and_formats():
 
 
 def test_resid_json_round_trips_into_a_resid_result():
-    from maglev.validate import ResidResult
+    from maglev.validation import ResidResult
 
     r = ResidResult.from_dict(json.loads(json.dumps(resid_json(0.2))))
     assert r.white and r.auto_outside == 0.2 and list(r.cross_lags) == list(range(-5, 6))

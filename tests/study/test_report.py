@@ -100,7 +100,7 @@ def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
     assert positions == sorted(positions)
     assert "binary" in sections["binary-vs-uniform"] and "uniform" in sections["binary-vs-uniform"]
     prep = sections["preparation"]
-    from maglev.plant import Levitator
+    from maglev.sim.plant import Levitator
 
     lin = Levitator(zero_at_10=True).linearize(parent["lab.u_star"], Ts=m["Ts"])
     assert f"static gain {lin.dc_gain:.3f} cm/A" in prep and f"Working point u* = {parent['lab.u_star']:.2f} A" in prep

@@ -91,7 +91,7 @@ def test_sweep_size_is_the_product_of_sweeper_params_and_command_line_sweeps():
 
 
 def test_model_and_resid_artifacts_are_loadable(sweep):
-    from maglev.models import PolyModel
+    from maglev.model import PolyModel
     from maglev.study.tracking import download_text
 
     store, _, _ = sweep

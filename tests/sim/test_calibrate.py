@@ -1,4 +1,4 @@
-"""Tests of maglev.calibrate (the fits) and maglev.refdata (where the real records are)."""
+"""Tests of maglev.sim.calibrate (the fits) and maglev.refdata (where the real records are)."""
 
 import os
 from pathlib import Path
@@ -6,11 +6,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from maglev import calibrate, refdata, sim_vs_real
-from maglev.plant import Levitator
-from maglev.sim_vs_real import stair_averages
+from maglev import refdata
+from maglev.sim import calibrate, sim_vs_real
+from maglev.sim.plant import Levitator
+from maglev.sim.sim_vs_real import stair_averages
 
-REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[1].parent / "shared" / "refdata"))
+REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
 needs_real = pytest.mark.skipif(not (REAL / refdata.KTH_2022).is_dir(),
                                 reason=f"real lab records not found under {REAL} "
                                 "(set MAGLEV_REFDATA to the shared refdata folder)")
@@ -62,7 +63,7 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_viscous_only_cal
 @needs_real
 @pytest.mark.realdata
 def test_friction_errors_are_the_printed_comparison_scaled_by_its_tolerances():
-    # the fit scores exactly what `python -m maglev.calibrate` prints and the done-when checks
+    # the fit scores exactly what `python -m maglev.sim.calibrate` prints and the done-when checks
     lev = Levitator(zero_at_10=True).with_params(coulomb_upper=0.04)  # not the defaults
     errors, _ = calibrate.friction_errors(lev, calibrate.friction_targets(REAL))
     cmp = sim_vs_real.compare(lev, REAL, records=("binary_signal_3",), fourth_order_records=(), frf_records=())

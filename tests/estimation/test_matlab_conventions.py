@@ -19,11 +19,11 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter, lfiltic
 
-from maglev import estimate as E
+from maglev import estimation as E
 from maglev.data import IOData
 from maglev.fit import fit_percent
 from maglev.refdata import load_record
-from maglev.validate import compare, resid
+from maglev.validation import compare, resid
 
 ARX_418_VAL_FIT = 98.65  # MATLAB compare(zval, arx(zest, [4 1 8]), 1), the 2022 group's report, Table 1
 ARX_418_EST_FIT = 99.0415  # MATLAB's Report.Fit.FitPercent of the same model

@@ -8,7 +8,7 @@ import pytest
 
 from maglev.data import IOData
 from maglev.polynomials import filt
-from maglev.selection import arxstruc, delayest, selstruc
+from maglev.estimation.selection import arxstruc, delayest, selstruc
 
 A2 = np.array([1.0, -1.5, 0.7])
 

@@ -9,8 +9,8 @@
   frees the pre-sample outputs and inputs: rows t ≥ max(na, nb+nk−1) + 1, the
   max(na, nb+nk−1) initial values counted in d.
 * ``armax``, ``oe``, ``bj`` and ``pem`` minimise the one-step prediction error with
-  Levenberg–Marquardt (:mod:`maglev.prediction_error`) from sound starting points
-  (:mod:`maglev.starts`: pseudo-linear regression for ARMAX, refined instrumental
+  Levenberg–Marquardt (:mod:`maglev.estimation.prediction_error`) from sound starting points
+  (:mod:`maglev.estimation.starts`: pseudo-linear regression for ARMAX, refined instrumental
   variables for the input path of OE and BJ with a Hannan–Rissanen noise model, plain
   ARX, and an optional warm start ``init``).  The strongest start is minimised first;
   the others are tried only when its prediction errors still show structure.
@@ -38,14 +38,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .data import IOData
-from .initial_state import INITIAL_CONDITIONS
-from .models import FitReport, PolyModel
+from ..data import IOData
+from ..initial_state import INITIAL_CONDITIONS
+from ..model import FitReport, PolyModel
+from .least_squares import regression, solve_regression
 from .prediction_error import evaluate, project, triangular_factor
 from .starts import best_minimum, more_starts, nested_theta, starts
-from .structures import PolySpec
-from .structures import get as get_structure
-from .threads import single_threaded_blas
+from ..structures import PolySpec
+from ..structures import get as get_structure
+from ..threads import single_threaded_blas
 
 AUTO_NORM_RATIO = 1.05  # MATLAB's AutoInitialState threshold: ‖e_zero‖ / ‖e_fitted‖ at the start
 ARX_AUTO = "auto→na initial outputs"  # how arx reports MATLAB's default convention
@@ -62,9 +63,9 @@ def _least_squares(data: IOData, spec: PolySpec, initial_condition: str) -> Poly
     """A structure with only A and B free (ARX and its special cases) by linear least squares."""
     y, u = _checked(data, spec, initial_condition)
     first = {"auto": spec.na, "zero": 0}.get(initial_condition, spec.max_lag)
-    phi, target = _regression(y, u, spec, first)
+    phi, target = regression(y, u, spec, first)
     r, qty = triangular_factor(phi, target)
-    theta = _solve_triangular(r, qty, data)
+    theta = solve_regression(r, qty, data.name)
     e = np.zeros(y.size)  # the first residuals vanish: their pre-sample data are free
     e[first:] = target - phi @ theta
     A, B, *_ = spec.polys(theta)
@@ -121,7 +122,7 @@ def estimate(data: IOData, structure: str, orders, initial_condition: str = "aut
     with every added coefficient, at about one minimisation per model.  Without
     ``init`` the search tries more starts when the first minimum leaves structure in
     the residuals, among them the nested lower-order models it fits itself
-    (:mod:`maglev.starts`).
+    (:mod:`maglev.estimation.starts`).
     """
     spec = PolySpec.from_orders(structure, orders)
     _check_scale(data)
@@ -202,41 +203,6 @@ def _excitation_level(u: np.ndarray, order: int) -> float:
     if eig[-1] <= 0:
         return 0.0
     return float(max(eig[0], 0.0) / eig[-1])
-
-
-# ---------------------------------------------------------------------------- least squares
-def _regression(y: np.ndarray, u: np.ndarray, spec: PolySpec, first: int) -> tuple[np.ndarray, np.ndarray]:
-    """ARX regressors [-y(t-1) … -y(t-na), u(t-nk) … u(t-nk-nb+1)] for rows t ≥ first (pre-sample zero)."""
-    N = y.size
-    rows = N - first
-    phi = np.empty((rows, spec.na + spec.nb), order="F")
-    for i in range(1, spec.na + 1):
-        phi[:, i - 1] = -_lagged(y, i, first)
-    for j in range(spec.nb):
-        phi[:, spec.na + j] = _lagged(u, spec.nk + j, first)
-    return phi, y[first:]
-
-
-def _lagged(x: np.ndarray, lag: int, first: int) -> np.ndarray:
-    """x(t - lag) for t = first … N-1, zero before the record starts."""
-    N = x.size
-    out = np.zeros(N - first)
-    start = max(first - lag, 0)
-    offset = max(lag - first, 0)
-    out[offset:] = x[start : N - lag]
-    return out
-
-
-def _solve_triangular(r: np.ndarray, rhs: np.ndarray, data: IOData) -> np.ndarray:
-    diag = np.abs(np.diag(r))
-    if diag.size and (diag.min() <= 1e-12 * max(diag.max(), 1e-300)):
-        raise ValueError(
-            f"{data.name or 'data'}: the regression is singular — the data do not determine all "
-            "parameters (input not exciting enough, or orders too high)"
-        )
-    from scipy.linalg import solve_triangular
-
-    return solve_triangular(r, rhs)
 
 
 # ---------------------------------------------------------------------------- PEM driver

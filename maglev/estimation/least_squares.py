@@ -1,4 +1,9 @@
-"""Least squares on lagged copies of a few signals, through their lag products (no regressor matrix).
+"""Linear least squares on lagged signals: ARX's regression and the regressions behind starting points.
+
+``regression``/``solve_regression`` build and solve ARX's regression exactly (the rows
+MATLAB's ``arx`` uses; QR of the regressor matrix).  ``lagged_lstsq``/``lagged_iv``
+solve the large regressions behind the prediction-error estimators' starting points
+through their lag products, without forming the regressor matrix.
 
 The starting points of the prediction-error estimators are regressions whose columns
 are delayed copies of two or three signals (y, u, a residual), e.g. the long ARX
@@ -15,6 +20,9 @@ singular); the squared condition number is harmless for a starting point.
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import solve_triangular
+
+from ..structures import PolySpec
 
 Group = tuple[np.ndarray, np.ndarray, float]  # (signal x, lags, sign): columns sign · x(t − lag)
 
@@ -99,3 +107,36 @@ def _solve_normal(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         return np.linalg.solve(scaled, rhs / scale) / scale
     except np.linalg.LinAlgError:
         return np.linalg.lstsq(scaled, rhs / scale, rcond=1e-12)[0] / scale
+
+
+def regression(y: np.ndarray, u: np.ndarray, spec: PolySpec, first: int) -> tuple[np.ndarray, np.ndarray]:
+    """ARX regressors [-y(t-1) … -y(t-na), u(t-nk) … u(t-nk-nb+1)] for rows t ≥ first (pre-sample zero)."""
+    N = y.size
+    rows = N - first
+    phi = np.empty((rows, spec.na + spec.nb), order="F")
+    for i in range(1, spec.na + 1):
+        phi[:, i - 1] = -lagged(y, i, first)
+    for j in range(spec.nb):
+        phi[:, spec.na + j] = lagged(u, spec.nk + j, first)
+    return phi, y[first:]
+
+
+def lagged(x: np.ndarray, lag: int, first: int) -> np.ndarray:
+    """x(t - lag) for t = first … N-1, zero before the record starts."""
+    N = x.size
+    out = np.zeros(N - first)
+    start = max(first - lag, 0)
+    offset = max(lag - first, 0)
+    out[offset:] = x[start : N - lag]
+    return out
+
+
+def solve_regression(r: np.ndarray, rhs: np.ndarray, name: str = "") -> np.ndarray:
+    """θ from the triangular factor R and Qᵀy of a regression; a singular R is an error naming the data."""
+    diag = np.abs(np.diag(r))
+    if diag.size and (diag.min() <= 1e-12 * max(diag.max(), 1e-300)):
+        raise ValueError(
+            f"{name or 'data'}: the regression is singular — the data do not determine all "
+            "parameters (input not exciting enough, or orders too high)"
+        )
+    return solve_triangular(r, rhs)

@@ -1,4 +1,4 @@
-"""Tests of maglev.lab (the lab's analysis steps) and maglev.labdata (the simulated dataset)."""
+"""Tests of maglev.lab (the lab's analysis steps) and maglev.sim.labdata (the simulated dataset)."""
 
 import os
 from pathlib import Path
@@ -11,13 +11,13 @@ from maglev.lab.averages import get_average, get_stationary_averages
 from maglev.lab.input_design import choose_alpha, output_spectrum
 from maglev.lab.sampling import rise_time
 from maglev.lab.working_region import working_region
-from maglev import labdata
+from maglev.sim import labdata
 from maglev.data import IOData
-from maglev.plant import Levitator
+from maglev.sim.plant import Levitator
 from maglev.lab.signals import rbs_spectrum, staircase
-from maglev.sim_vs_real import RISE_TOLERANCE
+from maglev.sim.sim_vs_real import RISE_TOLERANCE
 
-REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[1].parent / "shared" / "refdata"))
+REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
 KTH = REAL / "el2820_maglev_2022"
 needs_real = pytest.mark.skipif(not KTH.is_dir(), reason=f"real lab records not found at {KTH} "
                                 "(set MAGLEV_REFDATA to the shared refdata folder)")

@@ -9,7 +9,7 @@ import pytest
 from scipy.signal import lfilter
 
 from maglev import IOData
-from maglev.estimate import estimate
+from maglev.estimation import estimate
 
 
 @pytest.fixture(scope="module")

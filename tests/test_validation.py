@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from maglev.data import IOData
-from maglev.estimate import arx
-from maglev.models import PolyModel
-from maglev.validate import compare, fit_percent, resid
+from maglev.estimation import arx
+from maglev.model import PolyModel
+from maglev.validation import compare, fit_percent, resid
 
 A2 = np.array([1.0, -1.5, 0.7])
 B2 = np.array([0.0, 1.0, 0.5])
@@ -196,7 +196,7 @@ def test_resid_rejects_bad_arguments():
 
 
 def test_resid_result_dict_round_trip():
-    from maglev.validate import ResidResult
+    from maglev.validation import ResidResult
 
     r = resid(_armax_data(seed=3), _armax_model(), lags=10)
     back = ResidResult.from_dict(json.loads(json.dumps(r.to_dict())))

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from maglev import estimate as E
+from maglev import estimation as E
 from maglev.data import IOData
-from maglev.prediction_error import evaluate
-from maglev.starts import nested_theta
+from maglev.estimation.prediction_error import evaluate
+from maglev.estimation.starts import nested_theta
 from maglev.structures import PolySpec
-from maglev.validate import fit_percent
+from maglev.validation import fit_percent
 
-from .systems import TRUE, simulate, true_model
+from ..systems import TRUE, simulate, true_model
 
 STRUCTURE = {"arx": "arx", "armax": "armax", "oe": "oe", "bj": "bj", "pem": "pem", "lev": "oe"}
 

@@ -13,7 +13,7 @@ so the input-spectrum-weighted distance is a model's excess simulation error on
 the class and the BLA's own simulation FIT is the ceiling of every linear model.
 
 :func:`bla` estimates it from the noise-free simulator: M realisations of the class
-(the study's own generators, :func:`maglev.labdata.input_signal`, with other seeds;
+(the study's own generators, :func:`maglev.sim.labdata.input_signal`, with other seeds;
 same length and Ts), each preprocessed as the study does (trim the start-up,
 detrend, decimate), cross- and auto-spectra averaged over realisations and Welch
 segments.  Its standard error comes from the spread of the per-realisation
@@ -42,8 +42,8 @@ import numpy as np
 from scipy import signal
 
 from maglev.data import IOData
-from maglev.labdata import ExperimentSpec, input_signal
-from maglev.plant import Levitator
+from maglev.sim.labdata import ExperimentSpec, input_signal
+from maglev.sim.plant import Levitator
 
 __all__ = ["Preprocess", "FrequencyResponse", "BLA", "bla", "frequency_response", "weighted_distance",
            "relative_distance", "SEGMENT_S", "REALISATIONS"]
@@ -278,7 +278,7 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
         cache: bool | str | Path = True) -> BLA:
     """The best linear approximation of ``plant`` for the input class ``spec`` (kind uniform or binary).
 
-    ``plant``: a :class:`~maglev.plant.Levitator` (default: the lab's,
+    ``plant``: a :class:`~maglev.sim.plant.Levitator` (default: the lab's,
     ``Levitator(zero_at_10=True)``), simulated noise-free; or any function
     ``(u, seed) -> y`` (not cached).  Each of ``realisations`` records of the class
     (seeds ``SEED0 + m``, the spec's length and Ts) is preprocessed by ``preprocess``

@@ -28,9 +28,9 @@ import numpy as np
 from scipy.linalg import qr
 from scipy.linalg.lapack import dgeqrf
 
-from .polynomials import MAX_RADIUS, filt, free_response_window, polymul, roots_within, stabilize
-from .structures import PolySpec
-from .threads import single_threaded_blas
+from ..polynomials import MAX_RADIUS, filt, free_response_window, polymul, roots_within, stabilize
+from ..structures import PolySpec
+from ..threads import single_threaded_blas
 
 MAX_RETRIES = 10  # damping grows ×2, ×4, ×8 … per failed try: past 1e5 × diag(JᵀJ) after ten
 NEGLIGIBLE = 1e3  # expected improvements below 1e3 × tolerance count as converged at a stall

@@ -16,9 +16,9 @@ from collections.abc import Iterable
 import numpy as np
 import pandas as pd
 
-from .data import IOData
-from .estimate import _regression
-from .structures import PolySpec
+from ..data import IOData
+from .least_squares import regression
+from ..structures import PolySpec
 
 TABLE_COLUMNS = ("na", "nb", "nk", "loss", "n_params", "n_estimation")
 
@@ -59,8 +59,8 @@ def arxstruc(
                 f"arxstruc: {name} has {data.N} samples; orders up to na={na_max}, nb={nb_max} with "
                 f"delays up to {max(nks)} need at least {first + 2 * d_max + 1}"
             )
-    phi_e, y_e = _regression(est.y, est.u, spec, first)
-    phi_v, y_v = _regression(val.y, val.u, spec, first)
+    phi_e, y_e = regression(est.y, est.u, spec, first)
+    phi_v, y_v = regression(val.y, val.u, spec, first)
     rows = []
     for na in nas:
         for nb in nbs:

@@ -1,4 +1,4 @@
-"""Tests of maglev.plant: statics against the force balance, stops, linearisation, noise, speed."""
+"""Tests of maglev.sim.plant: statics against the force balance, stops, linearisation, noise, speed."""
 
 import re
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from maglev.estimate import arx
-from maglev.plant import Levitator, LevitatorParams, _friction
+from maglev.estimation import arx
+from maglev.sim.plant import Levitator, LevitatorParams, _friction
 from maglev.lab.signals import random_binary
 
 

@@ -26,7 +26,7 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
 6-7 ms of physical time (notes §5).  By default the simulator reproduces the
 records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
-of physics with ``time_scale = t_phys / 1 ms`` (5.852, fitted by ``maglev.calibrate``
+of physics with ``time_scale = t_phys / 1 ms`` (5.852, fitted by ``maglev.sim.calibrate``
 together with the friction), so a 60 s-labelled record covers about 350 s of physics
 and the transients have the real records' length in samples.  With
 ``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
@@ -53,7 +53,7 @@ _CM = 100.0  # cm per m: accelerations in cm/s^2 are 100 F/m
 
 @dataclass(frozen=True)
 class LevitatorParams:
-    """Physical and sensor parameters (defaults: fitted to the KTH 2022 records by ``maglev.calibrate``)."""
+    """Physical and sensor parameters (defaults: fitted to the KTH 2022 records by ``maglev.sim.calibrate``)."""
 
     m: float = 0.12  # kg, mass of each magnet
     g: float = 9.81  # m/s^2

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from maglev import estimate as E
+from maglev import estimation as E
 from maglev.data import IOData
-from maglev.prediction_error import minimise
+from maglev.model import PolyModel
+from maglev.estimation.prediction_error import minimise
 from maglev.structures import PolySpec
-from maglev.validate import compare
+from maglev.validation import compare
 
 RECORDS = {"binary_signal_2": ("u", "y"), "white_noise_2": ("u2", "y2")}
 
@@ -57,7 +58,7 @@ def test_armax_and_bj_converge_with_high_stable_validation_fit(refdata, record, 
         theta0 = m.parameters * (1 + 0.02 * rng.standard_normal(m.n_params))
         again = minimise(spec, theta0, est.y, est.u, fit_states=m.report.n_initial > 0)
         A, B, C, D, F = spec.polys(again.evaluation.theta)
-        refit = E.PolyModel(A=A, B=B, C=C, D=D, F=F, nk=m.nk, Ts=m.Ts, structure=structure)
+        refit = PolyModel(A=A, B=B, C=C, D=D, F=F, nk=m.nk, Ts=m.Ts, structure=structure)
         assert again.evaluation.loss > m.report.loss * (1 - 0.02)
         assert compare(val, refit)[0] == pytest.approx(fit, abs=0.5)
 

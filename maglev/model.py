@@ -4,7 +4,7 @@ A `PolyModel` carries its polynomials (arrays in q⁻¹; A, C, D, F monic, B wit
 leading zeros), the estimated parameter covariance and noise variance, and a
 `FitReport` with the estimation diagnostics.  It predicts k steps ahead, simulates,
 computes residuals, and converts to python-control transfer functions for Bode and
-pole-zero work.  Estimation lives in :mod:`maglev.estimate`; this module only
+pole-zero work.  Estimation lives in :mod:`maglev.estimation`; this module only
 evaluates a given model.
 """
 
@@ -27,7 +27,7 @@ from .structures import get as get_structure
 
 @dataclass(frozen=True)
 class FitReport:
-    """Estimation diagnostics, with MATLAB's definitions (see ``maglev.estimate``)."""
+    """Estimation diagnostics, with MATLAB's definitions (see ``maglev.estimation``)."""
 
     method: str
     n_samples: int
@@ -43,11 +43,6 @@ class FitReport:
     iterations: int
     termination: str
     initial_condition: str
-
-    @property
-    def mse(self) -> float:
-        """Mean squared prediction error on the estimation data (equals ``loss``)."""
-        return self.loss
 
     @classmethod
     def from_residuals(

@@ -1,4 +1,4 @@
-"""Tests of maglev.sim_vs_real: the simulator's defaults reproduce the real KTH records.
+"""Tests of maglev.sim.sim_vs_real: the simulator's defaults reproduce the real KTH records.
 
 Each test replays a real record's input through the default simulator and compares
 the numbers the lab computes on both; the real records are needed (skips otherwise).
@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from maglev import sim_vs_real
-from maglev.bla import FrequencyResponse
-from maglev.plant import Levitator
+from maglev.sim import sim_vs_real
+from maglev.sim.bla import FrequencyResponse
+from maglev.sim.plant import Levitator
 from maglev.refdata import KTH_2022, load_record
 
-REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[1].parent / "shared" / "refdata"))
+REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
 needs_real = pytest.mark.skipif(not (REAL / KTH_2022).is_dir(),
                                 reason=f"real lab records not found under {REAL} "
                                 "(set MAGLEV_REFDATA to the shared refdata folder)")
@@ -59,7 +59,12 @@ def test_defaults_reproduce_the_real_records():
     (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
     assert wn_s == pytest.approx(wn_r, rel=0.2)
     assert z_s == pytest.approx(z_r, rel=0.2)
-    assert "rms" in cmp.table()
+    table = cmp.table().splitlines()  # the printed comparison states these numbers
+    assert f"rms {cmp.static_rms:.4f} cm (tolerance {sim_vs_real.STATIC_NOISE_MULTIPLE:g} x noise std " \
+           f"= {cmp.static_tolerance:.4f} cm)" in table
+    row = next(line.split() for line in table if line.split()[:1] == ["binary_signal_3"])
+    assert [float(row[1]), float(row[2])] == pytest.approx([wn_r, wn_s], abs=0.051)  # printed %.1f
+    assert [float(row[4]), float(row[5])] == pytest.approx([z_r, z_s], abs=0.0051)  # printed %.2f
 
 
 # ---------------------------------------------------------------------- dynamics and dry friction

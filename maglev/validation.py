@@ -19,7 +19,7 @@ from scipy.stats import chi2
 
 from .data import IOData
 from .fit import fit_percent
-from .models import PolyModel
+from .model import PolyModel
 
 __all__ = ["fit_percent", "compare", "naive_fit", "resid", "ResidResult"]
 

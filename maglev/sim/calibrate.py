@@ -1,18 +1,15 @@
-"""Fit the levitator simulator to the real KTH records (``python -m maglev.calibrate``).
+"""Fit the levitator simulator to the real KTH records (``python -m maglev.sim.calibrate``).
 
-Why: the defaults of :class:`maglev.plant.LevitatorParams` must be reproducible from
-the public lab data.  ``python -m maglev.calibrate`` runs fits 1, 4 and 2 (in that
-order) and prints the simulated-vs-real comparison of :mod:`maglev.sim_vs_real`:
+Why: the defaults of :class:`maglev.sim.plant.LevitatorParams` must be reproducible from
+the public lab data.  ``python -m maglev.sim.calibrate`` runs fits 1, 3 and 2 (in that
+order) and prints the simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_real`:
 
 1. static: coil law (a, b, n), pull on the upper magnet (kappa), sensor offset and
    regulator saturation, by least squares of the equilibria against the stationary
    averages of the real staircase (``working_region``); c and d stay at the ECP values;
 2. noise: std, mains-ripple line (aliased frequency, width, share) and ADC step from
    the constant-current record ``binary_signal_9``;
-3. dynamics, viscous only (``fit_dynamics``, not run by ``main`` any more): physical
-   time per logged sample and viscous friction, by least squares of noise-free
-   simulated staircase transients against the real ones, for a pure delay of 0-2 samples;
-4. dynamics with dry friction (``fit_friction``): Coulomb, Stribeck and creep-speed
+3. dynamics with dry friction (``fit_friction``): Coulomb, Stribeck and creep-speed
    friction of both bushings, viscous friction and the physical time per sample, by
    Nelder-Mead on the log-parameters against the checks the calibration must pass
    (``friction_errors``): ωn and ζ of the modes identified from binary_signal_1..4 and
@@ -38,11 +35,11 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize, signal
 
-from maglev import bla
+from maglev.sim import bla
 from maglev.data import IOData
-from maglev.plant import Levitator, LevitatorParams
+from maglev.sim.plant import Levitator, LevitatorParams
 from maglev.refdata import load_record, refdata_dir
-from maglev.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
+from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
                                 FRF_PREPROCESS, FRF_SEGMENT_S, FRF_TOLERANCE_DB, MODE_TOLERANCE, POLE_RECORDS,
                                 RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS, STAIR_TAIL, STATIC_NOISE_MULTIPLE,
                                 STD_RECORDS, STD_TOLERANCE, TRANSIENT_FRACTION, WHITE_RECORD, Comparison, Mode,
@@ -50,7 +47,7 @@ from maglev.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOL
                                 least_damped, noise_psd, output_std, quantisation_step, stair_averages, stair_step,
                                 two_modes)
 
-__all__ = ["fit_static", "fit_noise", "fit_dynamics", "fit_friction", "friction_targets", "friction_errors",
+__all__ = ["fit_static", "fit_noise", "fit_friction", "friction_targets", "friction_errors",
            "friction_cost", "main"]
 
 # parameters moved by fit_friction (all positive, fitted in log space)
@@ -104,38 +101,7 @@ def fit_noise(constant: IOData, base: Levitator) -> Levitator:
                             quant=quantisation_step(constant.y))
 
 
-# ---------------------------------------------------------------------- 3. dynamics
-def _transient_index(n: int) -> np.ndarray:
-    per = n // STAIR_LEVELS
-    return np.r_[2 * per:9 * per, 20 * per:n]  # steps 1 -> 4.5 A and the final drop to 0 A
-
-
-def fit_dynamics(stair: IOData, base: Levitator, delays: tuple[int, ...] = (0, 1, 2)) -> Levitator:
-    """Fit t_phys, gamma_lower, gamma_upper (and the delay in samples) to the staircase transients."""
-    idx = _transient_index(stair.N)
-    p0 = base.params
-
-    def model(x: np.ndarray, nd: int) -> Levitator:
-        t_phys = x[0] * 1e-3
-        return base.with_params(t_phys=t_phys, gamma_lower=x[1], gamma_upper=x[2],
-                                delay=nd * t_phys * stair.Ts / 1e-3)
-
-    def residual(x: np.ndarray, nd: int) -> np.ndarray:
-        return (model(x, nd).simulate(stair.u, Ts=stair.Ts, noise=False).y - stair.y)[idx]
-
-    best: tuple[float, Levitator] | None = None
-    for nd in delays:
-        res = optimize.least_squares(residual, [p0.t_phys * 1e3, p0.gamma_lower, p0.gamma_upper],
-                                     args=(nd,), bounds=([2.0, 0.0, 0.0], [15.0, 50.0, 20.0]),
-                                     x_scale=[1.0, 1.0, 0.3])
-        cost = float(np.sqrt(np.mean(res.fun ** 2)))
-        if best is None or cost < best[0]:
-            best = (cost, model(res.x, nd))
-    assert best is not None
-    return best[1]
-
-
-# ---------------------------------------------------------------------- 4. dry friction
+# ---------------------------------------------------------------------- 3. dry friction
 @dataclass(frozen=True)
 class FrictionTargets:
     """The real records' numbers that ``fit_friction`` matches (see :func:`friction_targets`)."""
@@ -195,7 +161,7 @@ def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple
     ``std ratio`` (α .25 / white noise) and ``frf <record>`` (largest |dB| difference
     where the real coherence >= ``FRF_COHERENCE``, over ``FRF_TOLERANCE_DB``; the
     simulated estimate is the replayed record's, one realisation of the class, where
-    ``maglev.sim_vs_real`` prints the BLA over several).  Penalties (0 when met): every
+    ``maglev.sim.sim_vs_real`` prints the BLA over several).  Penalties (0 when met): every
     output std within ``STD_FIT_FACTOR`` of the real one and the static rms below
     ``STATIC_FIT_SHARE`` of its tolerance; a mode that cannot be identified costs 10.
     """
@@ -353,7 +319,7 @@ def _save_figures(lev: Levitator, root: Path | None, out: Path, cmp: Comparison 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m maglev.calibrate", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m maglev.sim.calibrate", description=__doc__.split("\n")[0])
     parser.add_argument("--refdata", type=Path, default=None, help="reference data root (default: ../shared/refdata)")
     parser.add_argument("--out", type=Path, default=None, help="directory for PNG figures")
     parser.add_argument("--no-fit", action="store_true", help="compare the current defaults only")

@@ -1,4 +1,4 @@
-"""Tests of maglev.bla: the best linear approximation and the one-record frequency response.
+"""Tests of maglev.sim.bla: the best linear approximation and the one-record frequency response.
 
 Known truths: on a linear plant the BLA is its transfer function (coverage of the
 standard error); on the levitator it depends on the input class; the identity
@@ -11,13 +11,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from maglev import bla as bla_mod
-from maglev.bla import BLA, Preprocess, bla, frequency_response, relative_distance, weighted_distance
+from maglev.sim import bla as bla_mod
+from maglev.sim.bla import BLA, Preprocess, bla, frequency_response, relative_distance, weighted_distance
 from maglev.data import IOData
-from maglev.estimate import arx, oe
-from maglev.labdata import ExperimentSpec, input_signal
-from maglev.models import PolyModel
-from maglev.plant import Levitator
+from maglev.estimation import arx, oe
+from maglev.sim.labdata import ExperimentSpec, input_signal
+from maglev.model import PolyModel
+from maglev.sim.plant import Levitator
 
 BINARY = ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=12.0)
 NARROW = ExperimentSpec("uniform", 1.75, 2.5, duration_s=12.0)

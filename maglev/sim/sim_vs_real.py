@@ -2,11 +2,11 @@
 
 Why: every claim about the simulator's realism must be a number anyone can
 recompute.  :func:`compare` replays the real records' inputs through a
-:class:`~maglev.plant.Levitator` and computes, on both, what the lab computes: the
+:class:`~maglev.sim.plant.Levitator` and computes, on both, what the lab computes: the
 static curve, the sensor noise, rise time and overshoot of the stair steps, α*, the
 output std per record (the rig's amplitude dependence) and the lightly damped modes of
 models identified with the same settings from real and simulated records.  The
-settings here are also the targets ``maglev.calibrate`` fits.
+settings here are also the targets ``maglev.sim.calibrate`` fits.
 
 Two identifications, because the rig has two lightly damped modes and no one model
 order shows both on every record:
@@ -27,9 +27,9 @@ The issue-15 checks (``ARMAX_ORDERS``, ``FRF_CLASSES``):
   damped modes (≈ 74 and ≈ 218 rad/s).  The fit is repeated on the simulated record
   without measurement noise: ARMAX's A polynomial also carries the noise's poles, so
   a sharp sensor-noise line can take two of its four poles (docs/simulator.md);
-* the real records' Welch frequency-response estimate (:func:`maglev.bla.frequency_response`,
+* the real records' Welch frequency-response estimate (:func:`maglev.sim.bla.frequency_response`,
   with its coherence-based error) against the simulator's best linear approximation
-  for the same input class (:func:`maglev.bla.bla`), both trimmed and detrended at 1 ms,
+  for the same input class (:func:`maglev.sim.bla.bla`), both trimmed and detrended at 1 ms,
   compared in dB where the real estimate's coherence is at least ``FRF_COHERENCE``.
 
 Frequencies are in rad/s of the 1 ms label the records carry.
@@ -47,11 +47,11 @@ from scipy import signal
 from maglev.lab.averages import get_stationary_averages
 from maglev.lab.input_design import choose_alpha, output_spectrum
 from maglev.lab.sampling import rise_time
-from maglev import bla as bla_mod
+from maglev.sim import bla as bla_mod
 from maglev.data import IOData
-from maglev.estimate import armax, oe
-from maglev.labdata import ExperimentSpec
-from maglev.plant import Levitator
+from maglev.estimation import armax, oe
+from maglev.sim.labdata import ExperimentSpec
+from maglev.sim.plant import Levitator
 from maglev.refdata import load_record
 
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
@@ -252,7 +252,7 @@ def compare_frf(lev: Levitator, record: str, root: Path | None = None, real: IOD
 # ---------------------------------------------------------------------- the comparison
 @dataclass(frozen=True)
 class Comparison:
-    """Simulated-vs-real numbers printed by ``python -m maglev.calibrate``."""
+    """Simulated-vs-real numbers printed by ``python -m maglev.sim.calibrate``."""
 
     u_bar: np.ndarray
     y_real: np.ndarray
@@ -370,7 +370,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     ``armax_check``: ARMAX [4 4 4 1] modes of ``ARMAX_RECORD``, simulated with and
     without the measurement noise (the noise-free fit shows what the plant itself
     offers the estimator); ``frf_records``: real
-    FRF vs the simulator's BLA (cached on disk, :mod:`maglev.bla`).
+    FRF vs the simulator's BLA (cached on disk, :mod:`maglev.sim.bla`).
     """
     stair = load_record("working_region", root)
     sim_stair = lev.simulate(stair.u, Ts=stair.Ts, seed=seed)

@@ -11,7 +11,7 @@ import pytest
 from scipy import signal
 
 from maglev.data import IOData
-from maglev.models import PolyModel
+from maglev.model import PolyModel
 
 from .systems import simulate, true_model
 
@@ -81,7 +81,7 @@ def test_control_conversion_agrees_with_freqresp_poles_and_zeros():
 
 
 def test_json_round_trip_is_exact():
-    from maglev.estimate import bj
+    from maglev.estimation import bj
 
     m = bj(simulate("bj", 2000, seed=5), 2, 1, 1, 2, 1)
     back = PolyModel.from_json(json.dumps(m.to_dict()))
