@@ -80,6 +80,12 @@ class SweepRefused(SystemExit):
     """
 
 
+class SweepNotStarted(SystemExit):
+    """The sweep's parent could not be set up (the store refused a write, ...): stop before any job (exit
+    status 1).  Hydra turns an ``Exception`` from a callback into a warning and runs the jobs anyway —
+    without the sweep's lock and with whatever parent id an earlier sweep left in the sweep dir."""
+
+
 def sweep_jobs(config: DictConfig) -> list[list[str]] | None:
     """Every job's overrides, as Hydra's basic sweeper will launch them (None for another sweeper)."""
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
@@ -137,6 +143,13 @@ class SweepCallback(Callback):
 
     # ------------------------------------------------------------------ start
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        try:
+            self._start(config)
+        except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
+            raise SweepNotStarted(f"maglev: the sweep could not start: {type(exc).__name__}: "
+                                  f"{str(exc).splitlines()[0] if str(exc) else ''}") from exc
+
+    def _start(self, config: DictConfig) -> None:
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
         task = task_config(config)
         check_sweep(config)

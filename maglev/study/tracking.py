@@ -162,7 +162,7 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
                 exp_id = client.get_experiment_by_name(name).experiment_id
         else:
             exp_id = exp.experiment_id
-    tag_experiment(client, exp_id)
+        tag_experiment(client, exp_id)  # check-then-write: two processes at once would both insert
     return client, exp_id
 
 
@@ -324,7 +324,11 @@ def tag_experiment(client: MlflowClient, exp_id: str, share: dict[str, dict] | N
         wanted[NOTE] = EXPERIMENT_NOTE
     for key, value in wanted.items():
         if tags.get(key) != value:
-            client.set_experiment_tag(exp_id, key, value)
+            try:
+                client.set_experiment_tag(exp_id, key, value)
+            except mlflow.exceptions.MlflowException:  # a server store has no lock: another process wrote it
+                if key not in client.get_experiment(exp_id).tags:
+                    raise
 
 
 def source_tags(entry: str) -> dict[str, str]:

@@ -67,8 +67,10 @@ def test_two_launches_at_once_run_every_config_once_into_a_fresh_then_an_existin
     first = [*SMALL, "structure=arx,oe", "study.name=twin"]
     procs = [start(tmp_path, *first, log=f"a{i}", rank=True) for i in range(2)]
     assert [p.wait(timeout=600) for p in procs] == [0, 0], (tmp_path / "a1.log").read_text()[-3000:]
-    logs = [(tmp_path / f"a{i}.log").read_text() for i in range(2)]
-    assert sum("is being run by process" in text for text in logs) == 1  # one of them waited
+    logs = "".join((tmp_path / f"a{i}.log").read_text() for i in range(2))
+    # each config identified once in all (the second launch waits for the first, or skips what it claimed)
+    assert logs.count("val_fit") == 2 and logs.count("skip ") == 2, logs
+    assert "Callback" not in logs and "Traceback" not in logs, logs  # no callback error swallowed by Hydra
     models = runs(tmp_path, "model")
     assert len(models) == 2 and finished_once(models) == Counter({h: 1 for h in finished_once(models)})
     [parent] = runs(tmp_path, "sweep")
@@ -78,6 +80,8 @@ def test_two_launches_at_once_run_every_config_once_into_a_fresh_then_an_existin
     second = [*SMALL, "structure=arx,oe,armax", "study.name=twin"]
     procs = [start(tmp_path, *second, log=f"b{i}", rank=True) for i in range(2)]
     assert [p.wait(timeout=600) for p in procs] == [0, 0], (tmp_path / "b1.log").read_text()[-3000:]
+    logs = "".join((tmp_path / f"b{i}.log").read_text() for i in range(2))
+    assert logs.count("val_fit") == 1 and "Callback" not in logs and "Traceback" not in logs, logs
     models = runs(tmp_path, "model")
     assert len(models) == 3 and set(finished_once(models).values()) == {1}
     parents = runs(tmp_path, "sweep")

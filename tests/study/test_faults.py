@@ -58,6 +58,21 @@ def test_a_single_impossible_run_is_refused_before_its_run(tmp_path):
     assert no_runs(tmp_path)
 
 
+def test_a_sweep_whose_parent_cannot_be_set_up_stops_before_any_job(tmp_path, monkeypatch):
+    """Hydra turns a callback's Exception into a warning and would run the jobs without lock or parent."""
+    from maglev.study import tracking
+
+    def refuse(cfg):
+        raise RuntimeError("UNIQUE constraint failed: experiment_tags.key\n[SQL: INSERT ...]")
+
+    monkeypatch.setattr(tracking, "connect", refuse)
+    with pytest.raises(SystemExit) as stopped:
+        launch(tmp_path, "dataset=binary_a025", "structure=arx,oe", *TINY, "lab.enabled=false")
+    assert stopped.value.code == ("maglev: the sweep could not start: RuntimeError: "
+                                  "UNIQUE constraint failed: experiment_tags.key")
+    assert no_runs(tmp_path)
+
+
 # ---------------------------------------------------------------------------- an unreachable server
 def test_a_closed_port_fails_at_once_in_one_line_naming_the_uri(tmp_path):
     """MLflow alone retried each call for ≈ 4 minutes and printed a 100-line traceback."""
