@@ -380,9 +380,14 @@ def log_dataset_inputs(client: MlflowClient, run_id: str, est, val, source: str 
     from mlflow.entities import DatasetInput, InputTag
     from mlflow.utils.mlflow_tags import MLFLOW_DATASET_CONTEXT
 
-    client.log_inputs(run_id, datasets=[
-        DatasetInput(dataset_entity(part, source, spec), tags=[InputTag(MLFLOW_DATASET_CONTEXT, context)])
-        for part, context in ((est, "estimation"), (val, "validation"))])
+    inputs = [DatasetInput(dataset_entity(part, source, spec), tags=[InputTag(MLFLOW_DATASET_CONTEXT, context)])
+              for part, context in ((est, "estimation"), (val, "validation"))]
+    try:
+        client.log_inputs(run_id, datasets=inputs)
+    except mlflow.exceptions.MlflowException:
+        # MLflow looks a dataset up, then inserts it: two processes logging the same new dataset at once
+        # both insert it and one fails (UNIQUE constraint failed: datasets...); again, it finds the other's
+        client.log_inputs(run_id, datasets=inputs)
 
 
 # ---------------------------------------------------------------------------- provenance

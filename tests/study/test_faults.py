@@ -226,3 +226,37 @@ def test_only_a_finished_ranking_run_is_reused(store, monkeypatch):
     done = client.create_run(exp, start_time=500, tags=tags).info.run_id
     client.set_terminated(done, "FINISHED")
     assert report.ranking_run_for(ranking) == done
+
+
+def test_two_runs_logging_the_same_new_dataset_at_once_both_log_it(store):
+    """MLflow looks a dataset up, then inserts it: the second of two simultaneous inserts failed
+    (UNIQUE constraint failed: datasets...) and its run ended FAILED — joblib workers on a fresh
+    experiment, or two launches, log the same dataset at the same moment."""
+    import threading
+
+    import numpy as np
+
+    from maglev import IOData
+    from maglev.study.tracking import log_dataset_inputs
+
+    client, exp, _ = store
+    errors: list[str] = []
+    for i in range(8):  # each round a dataset new to the experiment, logged by two threads at once
+        data = IOData(np.arange(20.0) + i, np.arange(20.0), 1.0, name=f"round{i}")
+        runs = [client.create_run(exp).info.run_id for _ in range(2)]
+        gate = threading.Barrier(2)
+
+        def log(run_id):
+            gate.wait()
+            try:
+                log_dataset_inputs(client, run_id, data, data)
+            except Exception as exc:  # noqa: BLE001 — collected for the assertion
+                errors.append(f"{type(exc).__name__}: {str(exc)[:120]}")
+
+        threads = [threading.Thread(target=log, args=(r,)) for r in runs]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert all(len(client.get_run(r).inputs.dataset_inputs) == 1 for r in runs)  # est = val: one dataset
+    assert errors == []
