@@ -135,12 +135,12 @@ def test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_
 
 # ---------------------------------------------------------------------------- claims, references, duplicates
 @pytest.fixture
-def store(tmp_path):
+def store(migrated_store):
     from maglev.study import tracking
 
-    client, exp = tracking.connect({"uri": f"sqlite:///{tmp_path}/m.db", "experiment": "maglev",
-                                    "artifact_location": str(tmp_path / "a")})
-    return client, exp, f"sqlite:///{tmp_path}/m.db"
+    uri = f"sqlite:///{migrated_store}/mlflow.db"
+    client, exp = tracking.connect({"uri": uri, "experiment": "maglev", "artifact_location": str(migrated_store / "a")})
+    return client, exp, uri
 
 
 def dead_pid() -> str:
