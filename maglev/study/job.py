@@ -140,7 +140,8 @@ def run(cfg: DictConfig) -> float | None:
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
 
     def create() -> str:
-        return client.create_run(exp_id, run_name=run_label(plain), tags=run_tags(plain, chash, ctx, parent)).info.run_id
+        tags = run_tags(plain, chash, ctx, parent)
+        return client.create_run(exp_id, run_name=run_label(plain), tags=tags).info.run_id
 
     if plain["study"]["skip_finished"]:
         run_id, holder = tracking.claim(client, exp_id, plain["tracking"]["uri"], chash, create)

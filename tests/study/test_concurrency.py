@@ -166,7 +166,8 @@ def test_submitit_local_sweep_of_8_jobs_against_a_tracking_server(tmp_path, mlfl
     store.mkdir()
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "hydra/launcher=local", "tracking=server",
            f"tracking.uri={mlflow_server}", "dataset=binary_a025,uniform_narrow", "structure=arx",
-           "structure.order=2,3,4,5", *TINY, *LEAN, "study.name=sub8", "tracking.experiment=cluster", f"hydra.sweep.dir={store}/multirun",
+           "structure.order=2,3,4,5", *TINY, *LEAN, "study.name=sub8", "tracking.experiment=cluster",
+           f"hydra.sweep.dir={store}/multirun",
            f"hydra.callbacks.maglev_rank.report_dir={store}/reports"]
     env = process_env()
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=600, env=env)
