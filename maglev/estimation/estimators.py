@@ -125,6 +125,7 @@ def estimate(data: IOData, structure: str, orders, initial_condition: str = "aut
     (:mod:`maglev.estimation.starts`).
     """
     spec = PolySpec.from_orders(structure, orders)
+    _check_scale(data)
     if get_structure(structure).least_squares:
         if init is not None:
             raise ValueError(f"{structure} is solved exactly by least squares; init applies to "
@@ -169,6 +170,30 @@ def _checked(data: IOData, spec: PolySpec, initial_condition: str) -> tuple[np.n
     return data.y, data.u
 
 
+MAX_RMS = 1e100  # the data's squares and their sums over N samples stay far inside float64 (1e±308)
+
+
+def _check_options(max_iterations, tolerance) -> None:
+    """``max_iterations`` an integer >= 0 (0: the best starting point), ``tolerance`` None or a number > 0."""
+    if isinstance(max_iterations, (bool, np.bool_)) or not isinstance(max_iterations, (int, np.integer)) \
+            or max_iterations < 0:
+        raise ValueError(f"max_iterations must be an integer >= 0, got {max_iterations!r}")
+    if tolerance is not None and (isinstance(tolerance, (bool, np.bool_)) or not isinstance(tolerance, (int, float))
+                                  or not np.isfinite(tolerance) or tolerance <= 0):
+        raise ValueError(f"tolerance must be None or a finite number > 0, got {tolerance!r}")
+
+
+def _check_scale(data: IOData) -> None:
+    """Refuse data whose scale over- or underflows once squared (loss inf or 0, a "converged" nonsense model)."""
+    if not isinstance(data, IOData):
+        return  # _checked says so
+    for what, x in (("input u", data.u), ("output y", data.y)):
+        rms = float(np.sqrt(np.mean(np.square(x / max(np.max(np.abs(x)), 1e-300))))) * float(np.max(np.abs(x)))
+        if rms > MAX_RMS or 0 < rms < 1 / MAX_RMS:
+            raise ValueError(f"{data.name or 'data'}: {what} has RMS {rms:.1e}; estimation squares the data, which "
+                             f"over- or underflows beyond RMS 1e±100 — rescale it (other units)")
+
+
 def _excitation_level(u: np.ndarray, order: int) -> float:
     """Smallest over largest eigenvalue of the Gram matrix of ``order`` lagged copies of u."""
     x = u - u.mean()
@@ -190,6 +215,8 @@ def _pem(
     tolerance: float | None = None,
     init=None,
 ) -> PolyModel:
+    _check_options(max_iterations, tolerance)
+    _check_scale(data)
     y, u = _checked(data, spec, initial_condition)
     candidates = [nested_theta(spec, init)] if init is not None else []
     candidates += starts(spec, y, u)

@@ -33,6 +33,13 @@ def lab_sweep(tmp_path_factory):
     return store, store / "reports", out.getvalue()
 
 
+def report_file(reports):
+    """The sweep's one report, ``<sweep>-<sweep_id[:8]>.html``."""
+    [page] = reports.glob("lab-*.html")
+    assert len(page.stem) == len("lab-") + 8
+    return page
+
+
 def ranked(runs) -> list:
     """FINISHED model runs by val_fit, ties to fewer parameters (the lab's ranking, done independently)."""
     kids = [r for r in runs if r.data.tags.get("kind") == "model" and r.info.status == "FINISHED"]
@@ -41,7 +48,7 @@ def ranked(runs) -> list:
 
 def test_sweep_ends_with_ranking_run_and_prints_where_things_are(lab_sweep):
     store, reports, out = lab_sweep
-    assert "ranking run:" in out and f"report:      {reports / 'lab.html'}" in out
+    assert "ranking run:" in out and f"report:      {report_file(reports)}" in out
     assert f"maglev ui --tracking-uri sqlite:///{store}/mlflow.db" in out
     client, _, runs = all_runs(store)
     parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
@@ -64,12 +71,12 @@ def test_sweep_ends_with_ranking_run_and_prints_where_things_are(lab_sweep):
              for a in client.list_artifacts(ranking.info.run_id, d)}
     assert {"ranking/table.csv", "ranking/top4.md", "best_vs_worst/bode.png", "best_vs_worst/pzmap.png",
             "best_vs_worst/resid.png", "binary_vs_uniform/fit.png", "binary_vs_uniform/common_validation.csv",
-            "report/lab.html"} <= paths
+            f"report/{report_file(reports).name}"} <= paths
 
 
 def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
     store, reports, _ = lab_sweep
-    page = (reports / "lab.html").read_text()
+    page = report_file(reports).read_text()
     for anchor in SECTION_IDS:
         assert f"<section id='{anchor}'>" in page, anchor
     client, _, runs = all_runs(store)
@@ -109,7 +116,7 @@ def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
 
 def test_report_is_self_contained(lab_sweep):
     _, reports, _ = lab_sweep
-    page = (reports / "lab.html").read_text()
+    page = report_file(reports).read_text()
     srcs = re.findall(r"<img [^>]*src='([^']*)'", page)
     assert len(srcs) == 11  # preparation, 4 lab steps, order selection, orders, binary vs uniform, 3 best vs worst
     assert all(s.startswith("data:image/png;base64,") for s in srcs)
@@ -137,7 +144,7 @@ def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tm
              "document.title = 'broken=' + im.filter(i => !i.complete || i.naturalWidth === 0).length "
              "+ ' total=' + im.length; });</script>")
     page = tmp_path / "probe.html"
-    page.write_text((reports / "lab.html").read_text().replace("</body>", probe + "</body>"))
+    page.write_text(report_file(reports).read_text().replace("</body>", probe + "</body>"))
     proc = subprocess.run(
         [chromium, "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
          "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
