@@ -29,4 +29,7 @@ def main(cfg: DictConfig) -> float | None:
 
 
 if __name__ == "__main__":
+    from maglev.study import shutdown
+
+    shutdown.install(forward=True)  # SIGTERM (Slurm, kill): runs KILLED, nothing left RUNNING
     main()

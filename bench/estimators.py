@@ -8,7 +8,7 @@ and a lightly damped 4th-order levitator-like plant with poles 0.95 ± 0.2j,
 medians over the repeats of: wall and CPU time of the estimator call (CPU time is
 the steadier one on a shared machine; both are single-threaded), for maglev the number
 of minimisations it ran ("starts") and their Levenberg–Marquardt iterations in all
-(counted by wrapping ``maglev.starts.minimise``; statsmodels reports its own
+(counted by wrapping ``maglev.estimation.starts.minimise``; statsmodels reports its own
 iterations), the relative parameter error ‖θ̂ − θ‖/‖θ‖, the largest pole error of G
 (poles matched one to one), and the one-step FIT on fresh validation data minus the
 true model's ("-" when the estimated G is unstable, so that its predictor diverges).
@@ -46,11 +46,11 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.optimize import linear_sum_assignment  # noqa: E402
 
-import maglev.starts as starts_module  # noqa: E402
+import maglev.estimation.starts as starts_module  # noqa: E402
 from maglev import IOData, PolyModel, PolySpec  # noqa: E402
-from maglev.estimate import estimate  # noqa: E402
+from maglev.estimation import estimate  # noqa: E402
 from maglev.polynomials import stabilize  # noqa: E402
-from maglev.validate import compare  # noqa: E402
+from maglev.validation import compare  # noqa: E402
 
 SNR_RATIO = 0.1  # std(H e) / std(G u)
 N_VALIDATION = 5000
@@ -136,7 +136,7 @@ def _maglev(case: Case, data: IOData) -> Fit:
 
 @contextlib.contextmanager
 def _counted_minimisations() -> Iterator[list[int]]:
-    """Record the iteration count of every minimisation ``maglev.starts`` runs inside the block."""
+    """Record the iteration count of every minimisation ``maglev.estimation.starts`` runs inside the block."""
     runs: list[int] = []
     original = starts_module.minimise
 

@@ -19,7 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from maglev.lab.signals import random_binary  # noqa: E402
-from maglev.plant import Levitator  # noqa: E402
+from maglev.sim.plant import Levitator  # noqa: E402
 
 TARGET_S = 1.0
 

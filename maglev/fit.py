@@ -2,7 +2,7 @@
 
 FIT = 100 (1 − ‖y − ŷ‖ / ‖y − mean(y)‖): 100 is a perfect reproduction, 0 is no better
 than the mean.  It lives in its own module because both the fitted model's report
-(:mod:`maglev.models`) and validation (:mod:`maglev.validate`) use it.
+(:mod:`maglev.model`) and validation (:mod:`maglev.validation`) use it.
 """
 
 from __future__ import annotations

@@ -43,7 +43,7 @@ def fit_initial_state(
     ``residual`` is target minus zero-state prediction; the correction is the
     combination of free responses that minimises its squared norm.  "estimate",
     "backcast" and "auto" all fit the state here (they differ only in how
-    :mod:`maglev.estimate` counts and uses it); "zero" returns no correction.
+    :mod:`maglev.estimation` counts and uses it); "zero" returns no correction.
     """
     correction = np.zeros_like(residual)
     if mode == "zero":

@@ -27,9 +27,9 @@ from matplotlib.patches import Rectangle
 from matplotlib.ticker import LogLocator, MaxNLocator
 
 from .data import IOData
-from .models import PolyModel
+from .model import PolyModel
 from .uncertainty import FrequencyBounds, frequency_bounds, root_regions, step_bounds, step_length
-from .validate import ResidResult
+from .validation import ResidResult
 
 N_FREQUENCIES = 300
 MAX_POINTS = 2000  # samples drawn per line over a whole record (≈ 2 per pixel at the figures' size)
@@ -86,7 +86,7 @@ def plot_compare(
     """Measured output and one or several predictions: the whole record, and a zoomed window below it.
 
     ``yhat``/``fit`` are one prediction and its FIT % or sequences of them (as
-    :func:`maglev.validate.compare` returns for one or several models).  The measured
+    :func:`maglev.validation.compare` returns for one or several models).  The measured
     output is drawn last, black and thicker, so it stays visible; ``window`` = (t0, t1)
     in seconds (default: the middle ``COMPARE_WINDOW`` of the record) is shaded on the
     upper panel and shown in the lower one.  ``ax``: a (whole record, zoom) pair or None.

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from .models import PolyModel
+from .model import PolyModel
 from .polynomials import filt, polymul
 
 MAX_STEP_SAMPLES = 20_000

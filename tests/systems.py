@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from maglev.data import IOData
-from maglev.models import PolyModel
+from maglev.model import PolyModel
 
 ONE = np.ones(1)
 

@@ -10,11 +10,11 @@ import pytest
 from matplotlib.figure import Figure
 
 from maglev.data import IOData
-from maglev.estimate import arx
-from maglev.models import PolyModel
+from maglev.estimation import arx
+from maglev.model import PolyModel
 from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid, plot_step
 from maglev.uncertainty import frequency_bounds, root_regions, step_bounds
-from maglev.validate import compare, resid
+from maglev.validation import compare, resid
 
 ONE = np.ones(1)
 TS = 0.01

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from maglev import estimate as E
+from maglev import estimation as E
 from maglev import uncertainty as U
-from maglev.models import PolyModel
+from maglev.model import PolyModel
 from maglev.structures import PolySpec
 
 from .systems import TRUE, simulate, true_model

@@ -16,6 +16,7 @@ Hydra, OmegaConf and MLflow are imported only in this package.  One module per j
 * :mod:`~maglev.study.report`    the lab report (HTML), one function per section in ``report.sections``
 * :mod:`~maglev.study.reproduce` recompute a run from its logged config
 * :mod:`~maglev.study.reap`      mark runs left RUNNING by dead processes as KILLED
+* :mod:`~maglev.study.shutdown`  SIGTERM ends a sweep like Ctrl-C: nothing left RUNNING
 * :mod:`~maglev.study.ui`        the MLflow UI on the store, started lightly
 * :mod:`~maglev.study.cli`       the ``maglev`` command
 

@@ -1,15 +1,19 @@
 """The sweep's Hydra callbacks: the parent MLflow run (:class:`SweepCallback`) and the ranking (:class:`RankingCallback`).
 
 ``SweepCallback.on_multirun_start`` runs once in the launching process before any job:
-it creates the store and experiment (so parallel workers never race to create the
-SQLite database), reaps runs left RUNNING by dead processes, finds or creates the
-parent run (``kind=sweep``; a relaunch of the same sweep reuses its parent), writes
-its id to ``<sweep dir>/parent_run_id`` (read by every job, also on a cluster) and
+it checks every job's config (:func:`check_sweep`: an impossible config stops the sweep
+before any run exists, naming the key), creates the store and experiment (so parallel
+workers never race to create the SQLite database), takes the sweep's lock — a second
+launch of the same sweep waits until the first has ended, then finds every config done
+— reaps runs left RUNNING by dead processes, finds or creates the parent run
+(``kind=sweep``; a relaunch of the same sweep reuses its parent), writes its id to
+``<sweep dir>/parent_run_id`` (read by every job, also on a cluster) and
 ``$MAGLEV_PARENT_RUN_ID``, and logs the lab-level steps once per sweep.
 ``on_multirun_end`` finishes the parent with a summary.  If the sweep dies (a job
-config error, Ctrl-C) an ``atexit`` hook marks the parent KILLED, or deletes it when
-no job ever started a run.  ``RankingCallback.on_multirun_end`` then ranks the sweep
-and writes its report (:func:`maglev.study.report.rank_and_report`).
+config error, Ctrl-C, SIGTERM) an ``atexit`` hook marks the parent KILLED, or deletes it
+when no job ever started a run, and marks KILLED what its jobs left RUNNING.
+``RankingCallback.on_multirun_end`` then ranks the sweep and writes its report
+(:func:`maglev.study.report.rank_and_report`).
 """
 
 from __future__ import annotations
@@ -19,6 +23,9 @@ import hashlib
 import json
 import logging
 import os
+import signal
+import socket
+import time
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +34,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import render, tracking
-from maglev.study.config import task_config
+from maglev.study.config import StudyConfigError, check, task_config
 
 log = logging.getLogger("maglev.study")
 
@@ -66,29 +73,104 @@ def sweep_size(config: DictConfig) -> int | None:
     return size
 
 
+class SweepRefused(SystemExit):
+    """A job's config cannot describe a run: the sweep stops before any run exists (one line, exit status 1).
+
+    A ``SystemExit``: Hydra turns an ``Exception`` raised by a callback into a warning and goes on.
+    """
+
+
+class SweepNotStarted(SystemExit):
+    """The sweep's parent could not be set up (the store refused a write, ...): stop before any job (exit
+    status 1).  Hydra turns an ``Exception`` from a callback into a warning and runs the jobs anyway —
+    without the sweep's lock and with whatever parent id an earlier sweep left in the sweep dir."""
+
+
+def sweep_jobs(config: DictConfig) -> list[list[str]] | None:
+    """Every job's overrides, as Hydra's basic sweeper will launch them (None for another sweeper)."""
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    if not str(config.hydra.sweeper.get("_target_", "")).endswith("BasicSweeper"):
+        return None
+    raw = config.hydra.sweeper.get("params") or {}
+    specs = [f"{k}={v}" for k, v in raw.items()] + list(config.hydra.overrides.task)
+    return BasicSweeper.split_arguments(OverridesParser.create().parse_overrides(specs), None)[0]
+
+
+def check_sweep(config: DictConfig) -> int:
+    """Compose and :func:`~maglev.study.config.check` every job of the sweep; the first impossible one
+    raises :class:`SweepRefused` naming the job and the key.  Returns the number of jobs checked.
+
+    Composing a job costs Hydra ≈ 0.2 s, so each distinct choice of config groups
+    (``dataset=…``, ``structure=…``) is composed once and plain value overrides
+    (``structure.order=3``) are applied to a copy, as composition would apply them.
+    """
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    jobs = sweep_jobs(config)
+    if not jobs or not GlobalHydra.instance().is_initialized():
+        return 0
+    loader = GlobalHydra.instance().config_loader()
+    parser = OverridesParser.create()
+    composed: dict[tuple[str, ...], DictConfig] = {}
+    for overrides in jobs:
+        parsed = parser.parse_overrides(list(overrides))
+        plain = [o for o in parsed if not (o.is_add() or o.is_delete() or o.is_force_add() or o.package
+                                           or loader.repository.group_exists(o.key_or_group))]
+        base = tuple(o.input_line for o in parsed if o not in plain)
+        try:
+            if base not in composed:
+                full = loader.load_sweep_config(config, list(base))
+                composed[base] = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
+            cfg = composed[base].copy()
+            for o in plain:
+                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
+            check(OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True))
+        except StudyConfigError as exc:
+            shown = " ".join(o for o in overrides if not o.lstrip("+~").startswith(("tracking", "hydra")))
+            raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
+    return len(jobs)
+
+
 class SweepCallback(Callback):
     def __init__(self) -> None:
         self.client = None
         self.parent: str | None = None
         self.fresh = False
+        self.lock: Path | None = None
 
     # ------------------------------------------------------------------ start
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        try:
+            self._start(config)
+        except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
+            raise SweepNotStarted(f"maglev: the sweep could not start: {type(exc).__name__}: "
+                                  f"{str(exc).splitlines()[0] if str(exc) else ''}") from exc
+
+    def _start(self, config: DictConfig) -> None:
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
         task = task_config(config)
+        check_sweep(config)
+        HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
-            render.start()  # the renderer's processes import while the store and the lab steps are made
+            render.start()  # the renderer's process imports while the store and the lab steps are made
         client, exp_id = tracking.connect(task["tracking"])
         self.client, self.exp_id = client, exp_id
+        sid = sweep_id(config, task)
+        sweep_dir = Path(config.hydra.sweep.dir).resolve()
+        name = task["study"]["name"]
+        self.lock = tracking.sweep_lock_path(task["tracking"]["uri"], sweep_dir, sid)
+        tracking.acquire_sweep(self.lock, lambda holder: log.warning(
+            "sweep %r is being run by %s; waiting for it to end (its finished configs are then skipped)",
+            name, holder))
         if task["tracking"]["reap"]:
             from maglev.study.reap import reap
 
             killed = reap(client, [exp_id])
             if killed:
                 log.warning("marked %d stale RUNNING run(s) KILLED", len(killed))
-        sid = sweep_id(config, task)
-        sweep_dir = Path(config.hydra.sweep.dir).resolve()
-        name = task["study"]["name"]
         found = client.search_runs([exp_id], filter_string=f"tags.sweep_id = '{sid}' and tags.kind = 'sweep'",
                                    order_by=["attributes.start_time DESC"], max_results=1)
         tags = {"kind": "sweep", "sweep": name, "sweep_id": sid, "sweep_dir": str(sweep_dir),
@@ -139,31 +221,74 @@ class SweepCallback(Callback):
         counts: dict[str, int] = {}
         for r in kids:
             counts[r.info.status] = counts.get(r.info.status, 0) + 1
+        refs = len(tracking.referenced(self.client, self.exp_id, self.parent))
         tracking.log_batch(self.client, self.parent,
-                           metrics={f"runs_{s.lower()}": n for s, n in counts.items()})
+                           metrics={**{f"runs_{s.lower()}": n for s, n in counts.items()}, "runs_referenced": refs})
         from maglev.study.ranking import describe_sweep
 
         describe_sweep(self.client, self.parent)  # what was swept, the top four and cautions if ranked
         self.client.set_terminated(self.parent, "FINISHED")
+        tracking.release_sweep(self.lock)
         os.environ.pop(tracking.PARENT_ENV, None)
         os.environ.pop(tracking.SIZE_ENV, None)
         summary = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "no runs"
-        log.info("sweep done: %s under parent run %s", summary, self.parent)
+        log.info("sweep done: %s under parent run %s%s", summary, self.parent,
+                 f" (and {refs} run(s) of other sweeps with the same configs)" if refs else "")
         if counts.get("FAILED"):
             log.warning("%d run(s) FAILED; their error.txt artifacts say why", counts["FAILED"])
 
     def _abort(self) -> None:
-        """atexit: the sweep did not reach on_multirun_end."""
+        """atexit: the sweep did not reach on_multirun_end (a job raised, Ctrl-C, SIGTERM)."""
         if self.parent is None:
             return
+        from maglev.study import shutdown
+
         render.abandon()
+        why = signal.Signals(shutdown.received).name if shutdown.received else "stopped before its end"
         try:
             if self.fresh and not tracking.children(self.client, self.exp_id, self.parent):
                 self.client.delete_run(self.parent)
+                log.warning("sweep stopped (%s) before any run: its parent run %s is deleted", why, self.parent)
             else:
                 self.client.set_terminated(self.parent, "KILLED")
+                left = self._reap_leftovers()
+                log.warning("sweep stopped (%s): parent run %s KILLED%s; the same command again runs what is "
+                            "not FINISHED", why, self.parent,
+                            f", {len(left)} run(s) left RUNNING marked KILLED" if left else "")
         except Exception:  # noqa: BLE001 — best effort at interpreter exit
             pass
+        finally:
+            tracking.release_sweep(self.lock)
+
+    def _reap_leftovers(self, timeout: float = 20.0) -> list[str]:
+        """Mark KILLED the runs this sweep left RUNNING on this host: this process's own (a ranking run in
+        flight) and the parent's children whose process is gone.  Workers that got the signal mark their
+        own runs KILLED; wait for them (at most ``timeout`` s: Slurm's SIGKILL follows 30 s after SIGTERM),
+        then mark what is left — joblib kills its workers when the main process dies."""
+        from maglev.study.reap import _alive
+
+        host, me = socket.gethostname(), os.getpid()
+
+        def pid(run) -> int | None:
+            text = run.data.tags.get("pid", "")
+            return int(text) if text.isdigit() else None
+
+        def ours(run) -> bool:
+            return pid(run) == me or run.data.tags.get("mlflow.parentRunId") == self.parent
+
+        end = time.monotonic() + timeout
+        while True:
+            running = [r for r in self.client.search_runs(
+                [self.exp_id], filter_string=f"attributes.status = 'RUNNING' and tags.host = '{host}'",
+                max_results=50000) if ours(r) and r.info.run_id != self.parent]
+            alive = [r for r in running if pid(r) not in (None, me) and _alive(pid(r))]
+            if not alive or time.monotonic() > end:
+                break
+            time.sleep(0.5)
+        for r in running:
+            self.client.set_tag(r.info.run_id, "reaped", "left RUNNING when the sweep was stopped")
+            self.client.set_terminated(r.info.run_id, "KILLED")
+        return [r.info.run_id for r in running]
 
 
 class RankingCallback(Callback):

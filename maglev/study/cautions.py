@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-TEST_LEVEL = 0.01  # residual tests at the 1 % level (maglev.validate)
+TEST_LEVEL = 0.01  # residual tests at the 1 % level (maglev.validation)
 NAIVE_MARGIN = 1.0  # FIT points a model must gain over y(t−1) to count as adding something
 SIM_GAP = 20.0  # FIT points between one-step and simulation FIT that flag a poor input-output model
 WORKING_POINT_SHARE = 0.10  # mean input this far (as a share of the working region's width) from u* differs

@@ -106,8 +106,8 @@ def _forward(module: str) -> Callable[[list[str]], int]:
 
 
 # the simulator's commands keep their own options (they live below the study layer)
-FORWARDED = {"labdata": ("maglev.labdata", "write the simulated lab dataset (.mat and .csv)"),
-             "calibrate": ("maglev.calibrate", "refit the simulator to the real records and print sim vs real")}
+FORWARDED = {"labdata": ("maglev.sim.labdata", "write the simulated lab dataset (.mat and .csv)"),
+             "calibrate": ("maglev.sim.calibrate", "refit the simulator to the real records and print sim vs real")}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -120,7 +120,7 @@ def parser() -> argparse.ArgumentParser:
     rank.set_defaults(func=_rank)
     report = sub.add_parser("report", help="write a sweep's lab report (HTML) and log it")
     _store_args(report)
-    report.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>.html)")
+    report.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>-<id>.html)")
     report.set_defaults(func=_report)
     repro = sub.add_parser("reproduce", help="recompute a run from its logged config; exit 0 if identical")
     repro.add_argument("run_id")

@@ -11,6 +11,7 @@ run's result (:func:`config_hash`) and how the config is logged as MLflow params
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 
@@ -41,36 +42,127 @@ def task_config(config: DictConfig) -> dict:
     return plain_config(OmegaConf.masked_copy(config, [k for k in config if k != "hydra"]))
 
 
-def check(cfg: dict) -> None:
-    """Semantic checks the schema cannot express; raise ``StudyConfigError`` naming the key."""
-    from maglev.structures import PolySpec
-    from maglev.study.datasets import data_path
+# A structure needs this many estimation samples per parameter: with d parameters and N samples the
+# expected validation loss is inflated by (1 + d/N)/(1 - d/N) (Akaike's FPE), 22 % at N = 10 d.
+SAMPLES_PER_PARAMETER = 10
 
-    st, ds = cfg["structure"], cfg["dataset"]
+
+def check(cfg: dict) -> None:
+    """Semantic checks the schema cannot express; raise ``StudyConfigError`` naming the key.
+
+    Everything the config decides is checked here, before any run exists: orders, the
+    dataset's length after trim, decimation and split against what the structure and the
+    validation (``study.resid_lags``, ``study.val_horizon``) need, and the iteration limit.
+    """
+    from maglev.structures import PolySpec
+
+    st, ds, study = cfg["structure"], cfg["dataset"], cfg["study"]
     try:
-        PolySpec.from_orders(st["name"], orders_of(st))
+        spec = PolySpec.from_orders(st["name"], orders_of(st))
     except ValueError as exc:
         raise StudyConfigError(f"structure: {exc}") from None
+    if "max_iterations" in st and st["max_iterations"] < 0:
+        raise StudyConfigError(f"structure.max_iterations must be >= 0, got {st['max_iterations']}")
     pp = ds["preprocess"]
     if not 0 < pp["split"] < 1:
         raise StudyConfigError(f"dataset.preprocess.split must be in (0, 1), got {pp['split']}")
     if pp["decimate"] < 1 or pp["trim"] < 0:
         raise StudyConfigError("dataset.preprocess: decimate must be >= 1 and trim >= 0, "
                                f"got decimate={pp['decimate']}, trim={pp['trim']}")
+    if study["val_horizon"] < 1:
+        raise StudyConfigError(f"study.val_horizon must be >= 1, got {study['val_horizon']}")
+    if study["resid_lags"] < 1:
+        raise StudyConfigError(f"study.resid_lags must be >= 1, got {study['resid_lags']}")
+    tracking = cfg.get("tracking", {})
+    if not 0 <= tracking.get("max_retries", 0) <= 10:  # MLflow refuses more than 10
+        raise StudyConfigError(f"tracking.max_retries must be in [0, 10], got {tracking['max_retries']}")
+    if tracking.get("timeout_s", 1) < 1:
+        raise StudyConfigError(f"tracking.timeout_s must be >= 1 (whole seconds), got {tracking['timeout_s']}")
+    check_lengths(ds, spec, study, raw_length(ds, cfg["data_dir"]))
+
+
+def raw_length(ds: dict, data_dir: str) -> int:
+    """Samples of the dataset before preprocessing, without simulating (a file is read once)."""
     if ds["source"] == "sim":
         from maglev.study.datasets import sim_spec
 
+        if ds["input_class"] == "binary" and ds.get("alpha") is None:
+            raise StudyConfigError(f"dataset {ds['name']!r}: dataset.alpha (switching probability in [0, 1]) "
+                                   "is needed for a binary input")
         try:
-            sim_spec(ds)
+            return sim_spec(ds).n
         except (TypeError, ValueError) as exc:
             raise StudyConfigError(f"dataset {ds['name']!r}: {exc}") from None
+    from maglev.study.datasets import data_path
+
+    try:
+        path = data_path(ds, data_dir)
+    except FileNotFoundError as exc:
+        raise StudyConfigError(str(exc)) from None
+    try:
+        return _file_length(str(path), ds["u"], ds["y"], ds.get("Ts"))
+    except ValueError as exc:
+        raise StudyConfigError(f"dataset {ds['name']!r}: {exc}") from None
+
+
+@functools.lru_cache(maxsize=64)
+def _file_length(path: str, u: str, y: str, Ts: float | None) -> int:
+    from maglev.data import IOData
+
+    reader = IOData.from_csv if path.lower().endswith(".csv") else IOData.from_mat
+    return reader(path, u=u, y=y, Ts=Ts).N
+
+
+def parts(n_raw: int, trim: int, decimate: int, split: float) -> tuple[int, int]:
+    """Estimation and validation samples left of ``n_raw`` by trim, decimate and split
+    (as :func:`maglev.study.datasets.prepare` cuts them: decimation keeps samples 0, k, 2k, …)."""
+    n = max(-(-(n_raw - trim) // decimate), 0)
+    n_est = int(round(n * split))
+    return n_est, n - n_est
+
+
+def check_lengths(ds: dict, spec, study: dict, n_raw: int) -> None:
+    """The estimation and validation parts left by trim, decimate and split must be long enough for the
+    structure (``SAMPLES_PER_PARAMETER`` per parameter, and the estimator's own minimum) and for the
+    validation (``study.resid_lags`` below half its samples, ``study.val_horizon`` below their number).
+
+    The error names the key to change first: the trim or decimation when both parts are too
+    short, the split when an even split would do, else the orders (estimation) or the
+    residual lags / horizon (validation); and any other single change that would do.
+    """
+    from maglev.data import MIN_SAMPLES
+
+    pp, name = ds["preprocess"], ds["name"]
+    trim, k, split = int(pp["trim"]), int(pp["decimate"]), float(pp["split"])
+    lags, horizon = int(study["resid_lags"]), int(study["val_horizon"])
+    need_est = max(spec.max_lag + 2 * spec.n_params + 1, SAMPLES_PER_PARAMETER * spec.n_params, MIN_SAMPLES)
+    need_val = max(2 * (lags + 1), horizon + 1, MIN_SAMPLES)
+
+    def fits(n_est: int, n_val: int) -> bool:
+        return n_est >= need_est and n_val >= need_val
+
+    n_est, n_val = parts(n_raw, trim, k, split)
+    if fits(n_est, n_val):
+        return
+    changes = {f"dataset.preprocess.trim={trim}": trim > 0 and fits(*parts(n_raw, 0, k, split)),
+               f"dataset.preprocess.decimate={k}": k > 1 and fits(*parts(n_raw, trim, 1, split)),
+               f"dataset.preprocess.split={split}": fits(*parts(n_raw, trim, k, 0.5))}
+    trim_key, dec_key, split_key = changes
+    if n_est < need_est and n_val < need_val and (changes[trim_key] or changes[dec_key]):
+        key = trim_key if changes[trim_key] else dec_key  # the record is too short after preprocessing
+    elif changes[split_key]:
+        key = split_key
+    elif n_est < need_est:
+        key = f"structure.order ({spec.label})"
     else:
-        try:
-            data_path(ds, cfg["data_dir"])
-        except FileNotFoundError as exc:
-            raise StudyConfigError(str(exc)) from None
-    if cfg["study"]["val_horizon"] < 1:
-        raise StudyConfigError(f"study.val_horizon must be >= 1, got {cfg['study']['val_horizon']}")
+        key = f"study.val_horizon={horizon}" if need_val == horizon + 1 else f"study.resid_lags={lags}"
+    others = [k_ for k_, ok in changes.items() if ok and k_ != key]
+    raise StudyConfigError(
+        f"{key}: dataset {name!r} ({n_raw} samples; trim {trim}, decimate {k}, split {split}) leaves "
+        f"{n_est} estimation and {n_val} validation samples; {spec.label} needs at least {need_est} estimation "
+        f"samples ({spec.n_params} parameters, {SAMPLES_PER_PARAMETER} samples each) and the validation at "
+        f"least {need_val} (study.resid_lags={lags} below half of them)"
+        + (f"; changing {' or '.join(others)} alone would also do" if others else ""))
 
 
 def hashed_part(cfg: dict) -> dict:

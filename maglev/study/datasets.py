@@ -2,7 +2,7 @@
 
 No Hydra and no MLflow here: ``load`` takes the ``dataset`` section of the resolved
 config as a plain dict, so :mod:`maglev.study.reproduce` and notebooks can call it directly.
-Simulated experiments come from :mod:`maglev.labdata`; files from ``data_dir``.
+Simulated experiments come from :mod:`maglev.sim.labdata`; files from ``data_dir``.
 Preprocessing order: trim → detrend → decimate → split.
 """
 
@@ -62,8 +62,8 @@ def load_raw(ds: dict, data_dir: str) -> IOData:
 
 
 def sim_spec(ds: dict):
-    """The simulator's record spec (:class:`maglev.labdata.ExperimentSpec`) of a ``source: sim`` dataset."""
-    from maglev.labdata import ExperimentSpec
+    """The simulator's record spec (:class:`maglev.sim.labdata.ExperimentSpec`) of a ``source: sim`` dataset."""
+    from maglev.sim.labdata import ExperimentSpec
 
     kind = str(ds["input_class"])
     alpha = ds.get("alpha") if kind == "binary" else None
@@ -74,8 +74,8 @@ def sim_spec(ds: dict):
 
 def dataset_bla(ds: dict):
     """The simulator's best linear approximation for a simulated dataset's input class, on the time base
-    of its models (the dataset's trim, detrend and decimation; :func:`maglev.bla.bla`, cached)."""
-    from maglev.bla import Preprocess, bla
+    of its models (the dataset's trim, detrend and decimation; :func:`maglev.sim.bla.bla`, cached)."""
+    from maglev.sim.bla import Preprocess, bla
 
     pp = ds["preprocess"]
     return bla(sim_spec(ds), preprocess=Preprocess(trim=int(pp["trim"]), detrend=bool(pp["detrend"]),
@@ -86,7 +86,7 @@ def dataset_bla(ds: dict):
 def _simulate(kind, low, high, alpha, duration_s, seed, Ts, name) -> IOData:
     from dataclasses import replace
 
-    from maglev.labdata import experiment
+    from maglev.sim.labdata import experiment
 
     spec = sim_spec({"input_class": kind, "low": low, "high": high, "alpha": alpha, "duration_s": duration_s,
                      "seed": seed, "Ts": Ts})

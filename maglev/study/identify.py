@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from maglev.estimate import estimate
-from maglev.models import PolyModel
+from maglev.estimation import estimate
+from maglev.model import PolyModel
 from maglev.structures import get as structure
 from maglev.study.datasets import Prepared, dataset_bla, load
 from maglev.threads import single_threaded_blas
-from maglev.validate import ResidResult, compare, naive_fit, resid
+from maglev.validation import ResidResult, compare, naive_fit, resid
 
 TIMING_METRICS = ("fit_seconds",)  # not reproducible; every other metric is
 
@@ -39,7 +39,7 @@ class FigureInputs:
     val_fit_sim: float
     horizon: int
     jacobian: tuple | None = None  # (A, B, C, D, dt) of the small-signal Jacobian, simulated data only
-    bla: object = None  # maglev.bla.BLA of the dataset's input class, simulated data only
+    bla: object = None  # maglev.sim.bla.BLA of the dataset's input class, simulated data only
 
     def true_system(self):
         """The small-signal Jacobian as a python-control system (None for recorded data)."""
@@ -120,14 +120,14 @@ def identify(cfg: dict) -> RunOutput:
 
 # ---------------------------------------------------------------------------- truth and data
 def bla_distance(model: PolyModel, ref) -> dict[str, float]:
-    """Distances of the model's G to the dataset's best linear approximation (``ref``, a :class:`maglev.bla.BLA`).
+    """Distances of the model's G to the dataset's best linear approximation (``ref``, a :class:`maglev.sim.bla.BLA`).
 
     ``g_bla_err``: ‖G − G_BLA‖ weighted by the input class's spectrum, relative to ‖G_BLA‖ —
     by E|y − G u|² = ‖G_BLA − G‖²_Φu + var(y_s) the model's excess simulation error on the
     class; ``g_bla_err_unweighted``: the same with uniform weight over 0 … Nyquist;
     ``bla_fit_ceiling``: the BLA's own simulation FIT on the class, which no linear model beats.
     """
-    from maglev.bla import relative_distance, weighted_distance
+    from maglev.sim.bla import relative_distance, weighted_distance
 
     g = model.freqresp  # a function: the norms are integrated finer than the BLA's Welch frequencies
     return {"g_bla_err": weighted_distance(g, ref), "g_bla_err_unweighted": relative_distance(g, ref),
@@ -145,7 +145,7 @@ def true_plant(prep: Prepared):
     """
     import control as ct
 
-    from maglev.plant import Levitator
+    from maglev.sim.plant import Levitator
 
     lin = Levitator(zero_at_10=True).linearize(prep.u0, Ts=prep.data.Ts)
     s = lin.sys_d

@@ -1,9 +1,15 @@
-"""One Hydra job = one MLflow run: check the config, skip if done, identify, log, finish.
+"""One Hydra job = one MLflow run: check the config, claim it, identify, log, finish.
 
 A config error (impossible orders, missing data file, ...) raises before any run is
-created.  An error while identifying marks the run FAILED with the traceback logged
-as ``error.txt`` and a short ``error`` tag; the job then returns normally so the rest
-of the sweep goes on (``study.fail_on_error=true`` re-raises instead).
+created.  A job then claims its config (:func:`maglev.study.tracking.claim`): when a
+FINISHED run of the same config exists, or a live process is running it — another
+launch, or an overlapping sweep — the job creates no run, links that run to its own
+sweep (``sweep_ref.<parent>`` tag, so the sweep ranks it) and returns.  An error while
+identifying marks the run FAILED: the ``error`` tag first, then the traceback
+(``error.txt``) and the config (``config/config.yaml``, so it can be reproduced); the job
+then returns normally so the rest of the sweep goes on (``study.fail_on_error=true``
+re-raises instead).  SIGTERM, Ctrl-C and a submitit job out of requeues mark the run
+KILLED and end the job (:mod:`maglev.study.shutdown`).
 """
 
 from __future__ import annotations
@@ -63,9 +69,13 @@ def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
 
 
 def skip_message(label: str, done, chash: str) -> str:
-    """Why a job logs nothing: which FINISHED run holds its config, and how to run it again."""
+    """Why a job logs nothing: which run holds its config (FINISHED, or RUNNING in a live process: another
+    launch or an overlapping sweep), and how to run it again."""
+    status = done.info.status
+    if status == "RUNNING":
+        status += f" in process {done.data.tags.get('pid', '?')} on {done.data.tags.get('host', '?')}"
     return (f"skip {label}: run {done.info.run_name!r} ({done.info.run_id}) already holds this config "
-            f"(hash {chash[:10]}, FINISHED); to run it again add study.skip_finished=false")
+            f"(hash {chash[:10]}, {status}); to run it again add study.skip_finished=false")
 
 
 def log_data_inputs(client, run_id: str, cfg: dict, prepared) -> None:
@@ -117,25 +127,35 @@ def model_description(cfg: dict, m: dict) -> str:
 
 
 def run(cfg: DictConfig) -> float | None:
-    """The task of ``study.py``: returns the run's ``val_fit`` (None if it failed)."""
+    """The task of ``study.py``: returns the run's ``val_fit`` (None if it failed or was skipped)."""
+    from maglev.study import shutdown
+
+    shutdown.install()  # joblib and submitit workers never run study.py's own installation
     plain = plain_config(cfg)
     check(plain)
     chash = config_hash(plain)
     ctx = hydra_context()
     label = progress(ctx) + run_label(plain)
     client, exp_id = tracking.connect(plain["tracking"])
+    parent = tracking.sweep_parent(ctx.get("sweep_dir"))
+
+    def create() -> str:
+        tags = run_tags(plain, chash, ctx, parent)
+        return client.create_run(exp_id, run_name=run_label(plain), tags=tags).info.run_id
+
     if plain["study"]["skip_finished"]:
-        done = tracking.finished_run(client, exp_id, chash)
-        if done:
-            log.info("%s", skip_message(label, client.get_run(done), chash))
+        run_id, holder = tracking.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
+        if holder is not None:
+            tracking.reference(client, holder, parent, plain["study"]["name"])
+            log.info("%s", skip_message(label, holder, chash))
             return None
-    run_info = client.create_run(exp_id, run_name=run_label(plain),
-                                 tags=run_tags(plain, chash, ctx, tracking.sweep_parent(ctx.get("sweep_dir")))).info
-    run_id = run_info.run_id
+    else:
+        run_id = create()
+    config_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
     try:
         tracking.log_batch(client, run_id, params=flatten(plain))
         out = identify(plain)
-        files = {"config/config.yaml": OmegaConf.to_yaml(OmegaConf.create(plain)),
+        files = {"config/config.yaml": config_yaml,
                  "model/model.json": out.model.to_json(), "model/summary.txt": out.model.summary(),
                  "resid/resid.json": out.resid, "data/data.json": out.prepared.info()}
         if ctx:
@@ -156,14 +176,31 @@ def run(cfg: DictConfig) -> float | None:
         log.info("%s: val_fit %.2f %%  (run %s)", label, out.metrics["val_fit"], run_id)
         return out.metrics["val_fit"]
     except BaseException as exc:  # noqa: BLE001 — record every way of dying
-        status = "FAILED" if isinstance(exc, Exception) else "KILLED"
-        text = "".join(traceback.format_exception(exc))
-        try:
-            tracking.log_files(client, run_id, {"error.txt": text})
-            tracking.log_batch(client, run_id, tags={"error": f"{type(exc).__name__}: {exc}"[:4000]})
-        finally:
-            client.set_terminated(run_id, status)
+        # submitit raises UncompletedJobError (an Exception) when a job ran out of requeues: killed, not failed
+        killed = not isinstance(exc, Exception) or type(exc).__name__ == "UncompletedJobError"
+        status = "KILLED" if killed else "FAILED"
+        record_end(client, plain["tracking"], run_id, exc, status, config_yaml)
         log.error("%s: run %s %s: %s: %s", label, run_id, status, type(exc).__name__, exc)
-        if status == "KILLED" or plain["study"]["fail_on_error"]:
+        if killed or plain["study"]["fail_on_error"]:
             raise
         return None
+
+
+def record_end(client, tracking_cfg: dict, run_id: str, exc: BaseException, status: str, config_yaml: str) -> None:
+    """End a run that died: the ``error`` tag first (one small call), then ``error.txt`` and the config,
+    then the status; each step on its own, so that one failing upload loses nothing else.  A server
+    that stopped answering ends the sweep (:class:`maglev.study.tracking.TrackingUnreachable`)."""
+    steps = (lambda: tracking.log_batch(client, run_id, tags={"error": f"{type(exc).__name__}: {exc}"[:4000]}),
+             lambda: tracking.log_files(client, run_id, {"error.txt": "".join(traceback.format_exception(exc)),
+                                                         "config/config.yaml": config_yaml}))
+    for step in steps:
+        try:
+            step()
+        except Exception as err:  # noqa: BLE001 — go on to the status
+            log.warning("run %s: could not record its error: %s: %s", run_id, type(err).__name__, err)
+    try:
+        client.set_terminated(run_id, status)
+    except Exception:
+        if tracking.is_http(tracking_cfg["uri"]):
+            tracking.check_reachable(tracking_cfg["uri"], float(tracking_cfg.get("timeout_s", 10)))
+        raise

@@ -26,7 +26,7 @@ def staircase(lab: dict, data_dir: str) -> IOData:
         reader = IOData.from_csv if path.suffix.lower() == ".csv" else IOData.from_mat
         kwargs = {"Ts": 0.001} if path.suffix.lower() == ".csv" else {}
         return reader(path, u=lab["staircase_u"], y=lab["staircase_y"], name="working_region", **kwargs)
-    from maglev.labdata import experiment
+    from maglev.sim.labdata import experiment
 
     return experiment("working_region")
 
@@ -71,7 +71,7 @@ def order_selection(prep, max_order: int, max_delay: int) -> dict:
     """MATLAB's order and delay selection on a dataset: ``delayest`` (ARX [2 2 nk], nk in 0..max_delay) on
     the estimation part, then ``arxstruc`` (na, nb in 1..max_order, that nk; losses on the validation
     part) and ``selstruc`` by AIC and by MDL: the orders the data suggest before any PEM model is fitted."""
-    from maglev.selection import arxstruc, delayest, selstruc
+    from maglev.estimation.selection import arxstruc, delayest, selstruc
 
     nk = delayest(prep.est, 2, 2, 0, max_delay)
     table = arxstruc(prep.est, prep.val, range(1, max_order + 1), range(1, max_order + 1), nk)

@@ -26,7 +26,7 @@ from maglev.study.cautions import Caution, cautions
 from maglev.study.store import (Sweep, SweepError, artifact_bytes, artifact_json, dataset_configs, load_model,
                                 run_config)
 from maglev.study.tracking import log_files
-from maglev.validate import ResidResult
+from maglev.validation import ResidResult
 
 TOP = 4
 TABLE_COLUMNS = ["rank", "name", "structure", "orders", "dataset", "input_class", "val_fit", "val_fit_naive",
@@ -98,7 +98,7 @@ def common_validation(configs: dict[str, dict], runs: pd.DataFrame, models: dict
     (``configs``: dataset name -> a run config).  A cell is NaN when the sampling periods differ.
     """
     from maglev.study.datasets import load
-    from maglev.validate import compare
+    from maglev.validation import compare
 
     names = sorted(set(runs["dataset"]))
     data = {n: load(configs[n]["dataset"], configs[n]["data_dir"]) for n in names}
@@ -154,7 +154,7 @@ def run_resid(sweep: Sweep, row: pd.Series, model):
     if logged is not None:
         return ResidResult.from_dict(logged)
     from maglev.study.datasets import load
-    from maglev.validate import resid
+    from maglev.validation import resid
 
     cfg = run_config(sweep.client, row["run_id"])
     prep = load(cfg["dataset"], cfg["data_dir"])
@@ -294,6 +294,14 @@ def log_ranking(r: Ranking) -> str:
     return run_id
 
 
+def report_name(sweep: Sweep) -> str:
+    """The report's file name, ``<sweep name>-<first 8 characters of its sweep_id>.html`` (of the parent run id
+    for a parent without one): two sweeps of one name never overwrite each other's report, and a relaunch of
+    the same sweep updates its own."""
+    sid = sweep.parent.data.tags.get("sweep_id") or sweep.parent_id
+    return f"{sweep.name}-{sid[:8]}.html"
+
+
 def previous_ranking_run(r: Ranking) -> str | None:
     """The latest ranking run of the sweep that ranked exactly these runs (same ``ranked_hash``), if any."""
     sweep = r.sweep
@@ -340,7 +348,7 @@ def ranking_description(r: Ranking, run_id: str) -> str:
         parts.append(f"Binary vs uniform input compared for `{r.structure}`: `binary_vs_uniform/`.")
     parts += [f"Note: {n}" for n in r.notes]
     parts.append("Artifacts: `ranking/table.md` (every ranked run), `best_vs_worst/`, `cautions/`, and the lab "
-                 f"report `report/{r.sweep.name}.html` (`maglev report`). Run id {run_id}.")
+                 f"report `report/{report_name(r.sweep)}` (`maglev report`). Run id {run_id}.")
     return "\n\n".join(parts) + "\n"
 
 
@@ -372,7 +380,9 @@ def describe_sweep(client, parent_id: str) -> None:
         counts[r.info.status] = counts.get(r.info.status, 0) + 1
     status = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "none yet"
     head = f"Sweep {name}: {len(kids)} model runs ({status})"
-    head += f" of {swept(kids)}." if kids else "."
+    head += f" of {swept(kids)}" if kids else ""
+    refs = tracking.referenced(client, exp, parent_id)  # configs other sweeps had run: ranked here too
+    head += f", and {len(refs)} run(s) of other sweeps with the same configs." if refs else "."
     overrides = parent.data.tags.get("hydra.overrides", "")
     parts = [head, f"Launched with `python study.py -m {overrides}`." if overrides else ""]
     ranking_id = parent.data.tags.get("ranking_run")

@@ -111,14 +111,19 @@ def drain() -> dict[str, str]:
 
 
 def abandon(status: str = "KILLED") -> list[str]:
-    """Stop the renderer without waiting (the sweep is dying): runs still queued get ``status``."""
+    """Stop the renderer without waiting (the sweep is dying): runs whose figures were not drawn get
+    ``status`` — those still queued, and those whose renderer died (SIGTERM reaches it too)."""
     global _pool
-    left = pending()
+    left = [run_id for run_id, (_, fut, _) in _pending.items()
+            if not (fut.done() and not fut.cancelled() and fut.exception() is None)]
     if _pool is not None:
         _pool.shutdown(wait=False, cancel_futures=True)
         _pool = None
     for run_id in left:
-        _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status)
+        try:
+            _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status)
+        except Exception as exc:  # noqa: BLE001 — the store may be gone too; mark the others
+            log.error("run %s left RUNNING: %s: %s", run_id, type(exc).__name__, exc)
     _pending.clear()
     return left
 

@@ -58,11 +58,23 @@ def model_run(client, run_id: str, uri: str):
     return run
 
 
+def recompute(cfg: dict, logged: dict[str, float]):
+    """(identical?, rows of (metric, logged, recomputed), run output): ``cfg``'s run again
+    without MLflow, every logged metric but the timings compared exactly."""
+    from maglev.study import tracking
+    from maglev.study.identify import TIMING_METRICS, identify
+
+    out = identify(cfg)
+    recomputed = {**out.metrics, **tracking.key_metrics(out.metrics)}
+    rows = [(key, logged[key], tracking._finite(recomputed.get(key, math.nan)))
+            for key in sorted(logged) if key not in TIMING_METRICS]
+    return all(same(a, b) for _, a, b in rows) and bool(rows), rows, out
+
+
 def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool = False) -> tuple[bool, list]:
     """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id``."""
     from maglev.study import tracking
     from maglev.study.config import config_hash
-    from maglev.study.identify import TIMING_METRICS, identify
     from maglev.study.store import run_config
 
     client = open_client(uri)
@@ -77,15 +89,7 @@ def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool 
     now = tracking.git_info()["git_commit"]
     if commit and commit != now:
         print(f"note: run made at commit {commit[:10]}, this checkout is {now[:10]}", file=sys.stderr)
-    out = identify(cfg)
-    recomputed = {**out.metrics, **tracking.key_metrics(out.metrics)}
-    rows = []
-    for key in sorted(run.data.metrics):
-        if key in TIMING_METRICS:
-            continue
-        new = recomputed.get(key, math.nan)
-        rows.append((key, run.data.metrics[key], tracking._finite(new)))
-    ok = all(same(a, b) for _, a, b in rows) and bool(rows)
+    ok, rows, out = recompute(cfg, run.data.metrics)
     if log_run:
         client2, exp_id = tracking.connect(cfg["tracking"] | {"uri": uri})
         rid = client2.create_run(exp_id, run_name=f"reproduce {run.info.run_name}",

@@ -56,7 +56,7 @@ class PreprocessCfg:
 
 @dataclass
 class SimDatasetCfg:
-    """A lab experiment run on the simulator (``maglev.labdata``)."""
+    """A lab experiment run on the simulator (``maglev.sim.labdata``)."""
 
     name: str = MISSING
     source: str = "sim"
@@ -114,6 +114,8 @@ class TrackingCfg:
     experiment: str = "maglev"
     reap: bool = True  # before a sweep, mark runs of dead local processes KILLED
     log_figures: bool = True
+    max_retries: int = 2  # a tracking server: MLflow's HTTP retries per call (waits 0, 2, 4 ... s between; MLflow: 7)
+    timeout_s: int = 10  # a tracking server: seconds per HTTP attempt (MLflow: 120)
 
 
 @dataclass

@@ -48,17 +48,25 @@ class Sweep:
 
 
 def open_store(uri: str, experiment: str):
-    """(client, experiment id) of an existing store and experiment; never creates either."""
-    from maglev.study.tracking import sqlite_path
+    """(client, experiment id) of an existing store and experiment; never creates either.
+
+    A server is checked first (one line naming the URI when it does not answer, within
+    seconds: MLflow's HTTP retries are bounded unless ``$MLFLOW_HTTP_REQUEST_*`` say
+    otherwise); a SQLite file is opened under the store lock, so a store another process
+    is still creating is waited for, not migrated twice.
+    """
+    from maglev.study.tracking import TrackingUnreachable, new_client, sqlite_path
 
     db = sqlite_path(uri)
     if db is not None and not db.is_file():
         raise SweepError(f"no MLflow store at {db}; run a sweep first (python study.py -m +sweep=lab) "
                          "or pass --tracking-uri")
-    from mlflow import MlflowClient
     from mlflow.exceptions import MlflowException
 
-    client = MlflowClient(tracking_uri=uri)
+    try:
+        client = new_client(uri)
+    except TrackingUnreachable as exc:
+        raise SweepError(str(exc.code).removeprefix("maglev: ")) from None
     try:
         exp = client.get_experiment_by_name(experiment)
         known = [e.name for e in client.search_experiments()] if exp is None else []
@@ -99,6 +107,32 @@ def model_rows(runs: list) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def sweep_runs(client, experiment_id: str, parent_id: str) -> tuple[list, int]:
+    """The sweep's model runs — its children and the runs of other sweeps it skipped because they held
+    its configs (tag ``sweep_ref.<parent>``) — with one FINISHED run per config hash (its own child
+    first, then the earliest), and how many FINISHED duplicates were dropped."""
+    from maglev.study.tracking import referenced
+
+    kids = client.search_runs([experiment_id], max_results=50000,
+                              filter_string=f"tags.`mlflow.parentRunId` = '{parent_id}' and tags.kind = 'model'")
+    refs = referenced(client, experiment_id, parent_id)
+    runs = {r.info.run_id: r for r in [*kids, *refs]}.values()
+
+    def preference(r) -> tuple:
+        return (r.data.tags.get("mlflow.parentRunId") != parent_id, r.info.start_time, r.info.run_id)
+
+    kept, seen, duplicates = [], set(), 0
+    for r in sorted(runs, key=preference):
+        key = r.data.tags.get("config_hash") or r.info.run_id
+        if r.info.status == "FINISHED":
+            if key in seen:
+                duplicates += 1
+                continue
+            seen.add(key)
+        kept.append(r)
+    return kept, duplicates
+
+
 def load_sweep(uri: str, experiment: str, parent_id: str | None = None, reap: bool = True) -> Sweep:
     """The sweep ``parent_id`` (default: the latest) with its FINISHED model runs, after reaping stale runs."""
     client, exp_id = open_store(uri, experiment)
@@ -107,11 +141,9 @@ def load_sweep(uri: str, experiment: str, parent_id: str | None = None, reap: bo
 
         reap_runs(client, [exp_id])
     parent = find_parent(client, exp_id, parent_id)
-    kids = client.search_runs(
-        [exp_id], max_results=50000,
-        filter_string=f"tags.`mlflow.parentRunId` = '{parent.info.run_id}' and tags.kind = 'model'")
+    kids, duplicates = sweep_runs(client, exp_id, parent.info.run_id)
     finished = [r for r in kids if r.info.status == "FINISHED"]
-    ignored: dict[str, int] = {}
+    ignored: dict[str, int] = {"duplicate": duplicates} if duplicates else {}
     for r in kids:
         if r.info.status != "FINISHED":
             ignored[r.info.status] = ignored.get(r.info.status, 0) + 1
@@ -155,7 +187,7 @@ def run_config(client, run_id: str) -> dict:
 
 def load_model(client, run_id: str):
     """The run's fitted ``PolyModel`` (``model/model.json``)."""
-    from maglev.models import PolyModel
+    from maglev.model import PolyModel
 
     raw = artifact_bytes(client, run_id, "model/model.json")
     if raw is None:

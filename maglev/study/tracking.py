@@ -1,8 +1,15 @@
 """Everything MLflow on the writing side: the store, the experiment, logging a run, queries.
 
 Written against MLflow 3.x (see ../shared/notes/hydra-mlflow.md): the local store is
-SQLite with an absolute URI, created once under a file lock (two processes migrating a
-fresh database at once crash); runs are created with ``MlflowClient`` rather than the
+SQLite with an absolute URI, created under a file lock — constructing the first
+``MlflowClient`` of a process creates and migrates the database, and two processes
+migrating a fresh database at once destroy it.  A tracking server is checked once
+(``GET /health``) before anything else, and MLflow's HTTP retries are bounded
+(``tracking.max_retries``, ``tracking.timeout_s``): MLflow's defaults retry a dead server
+for about 4 minutes per call.  An unreachable server ends the sweep at once with one line
+naming the URI (:class:`TrackingUnreachable`).  A job claims its config before it creates
+its run (:func:`claim`), so that no config runs twice, whichever launches share the store.
+Runs are created with ``MlflowClient`` rather than the
 fluent API, so no "active run" leaks between jobs of a reused worker process; params,
 metrics and tags go in one ``log_batch``; artifacts are written to a temporary folder
 and uploaded in one ``log_artifacts``.  The run schema is documented in docs/tracking.md.
@@ -64,14 +71,84 @@ def store_lock(uri: str):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
+class TrackingUnreachable(SystemExit):
+    """The tracking store cannot be reached: the sweep stops with this one line (exit status 1).
+
+    A ``SystemExit``, not an ``Exception``: Hydra's launchers and callbacks catch every
+    ``Exception`` and go on with the next job, and each job would then wait out its own
+    retries against the dead server before failing in turn.
+    """
+
+    def __init__(self, uri: str, why: str) -> None:
+        super().__init__(f"maglev: the MLflow tracking server {uri} cannot be reached ({why}); start it, "
+                         "or fix tracking.uri")
+
+
+# bounded HTTP retries when the config says nothing (CLI commands): ≈ 2 s on a refused port
+HTTP_DEFAULTS = {"max_retries": 2, "timeout_s": 10}
+
+
+def is_http(uri: str) -> bool:
+    return uri.startswith(("http://", "https://"))
+
+
+def http_settings(max_retries: int, timeout_s: int, override: bool = True) -> None:
+    """Bound MLflow's HTTP retries (it reads these variables on every request; workers inherit them).
+
+    ``max_retries`` retries (urllib3 waits 0, 2, 4 … s between attempts) and ``timeout_s`` per attempt (MLflow
+    takes whole seconds, at most 10 retries).  ``override=False`` keeps values the user set.
+    """
+    values = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": str(int(max_retries)), "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+              "MLFLOW_HTTP_REQUEST_TIMEOUT": str(int(timeout_s)),
+              "MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT": "true"}  # else every run's end prints two URLs
+    for key, value in values.items():
+        if override:
+            os.environ[key] = value
+        else:
+            os.environ.setdefault(key, value)
+
+
+def check_reachable(uri: str, timeout_s: float) -> None:
+    """One ``GET <uri>/health`` without retries; :class:`TrackingUnreachable` unless it answers 200."""
+    import requests
+
+    try:
+        answer = requests.get(uri.rstrip("/") + "/health", timeout=timeout_s)
+    except requests.RequestException as exc:
+        reason = exc.__context__ or exc.__cause__ or exc
+        raise TrackingUnreachable(uri, f"{type(exc).__name__}: {_short(reason)}") from None
+    if answer.status_code != 200:
+        raise TrackingUnreachable(uri, f"/health answered HTTP {answer.status_code}")
+
+
+def _short(exc: BaseException) -> str:
+    """The last clause of a connection error (urllib3 nests the reason several levels deep)."""
+    text = str(exc).replace("\n", " ")
+    return text.rsplit(": ", 1)[-1].strip(" )\"'")[:200] or type(exc).__name__
+
+
+def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None = None) -> MlflowClient:
+    """A client of the store at ``uri``: a server is checked first, with bounded retries; a SQLite
+    store is created (migrated) under :func:`store_lock`, the only safe moment for it."""
+    if is_http(uri):
+        given = max_retries is not None
+        http_settings(max_retries if given else HTTP_DEFAULTS["max_retries"],
+                      timeout_s if timeout_s is not None else HTTP_DEFAULTS["timeout_s"], override=given)
+        check_reachable(uri, float(os.environ["MLFLOW_HTTP_REQUEST_TIMEOUT"]))
+        return MlflowClient(tracking_uri=uri)
+    with store_lock(uri):
+        return MlflowClient(tracking_uri=uri)
+
+
 def connect(tracking: dict) -> tuple[MlflowClient, str]:
     """Client and experiment id for the ``tracking`` config; creates the store/experiment if needed."""
     uri = tracking["uri"]
     db = sqlite_path(uri)
     if db is not None and not db.is_absolute():
         raise ValueError(f"tracking.uri must be an absolute sqlite path (sqlite:////abs/path.db), got {uri!r}")
-    mlflow.set_tracking_uri(uri)
-    client = MlflowClient(tracking_uri=uri)
+    mlflow.set_tracking_uri(uri)  # does not touch the store
+    client = new_client(uri, tracking.get("max_retries", HTTP_DEFAULTS["max_retries"]),
+                        tracking.get("timeout_s", HTTP_DEFAULTS["timeout_s"]))
     name = tracking["experiment"]
     with store_lock(uri):
         exp = client.get_experiment_by_name(name)
@@ -85,8 +162,98 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
                 exp_id = client.get_experiment_by_name(name).experiment_id
         else:
             exp_id = exp.experiment_id
-    tag_experiment(client, exp_id)
+        tag_experiment(client, exp_id)  # check-then-write: two processes at once would both insert
     return client, exp_id
+
+
+# ---------------------------------------------------------------------------- one launch per sweep
+_held: dict[str, object] = {}  # lock path -> open file holding the lock (this process)
+
+
+def sweep_lock_path(uri: str, sweep_dir: str | Path, sid: str) -> Path:
+    """The lock of one sweep: beside a SQLite store, else (a server) in the sweep dir."""
+    db = sqlite_path(uri)
+    return db.with_name(f"{db.name}.sweep-{sid[:16]}.lock") if db else Path(sweep_dir) / f".sweep-{sid[:16]}.lock"
+
+
+def acquire_sweep(path: Path, waiting) -> None:
+    """Hold an exclusive lock on ``path`` until :func:`release_sweep` or the end of the process (kill -9
+    included).  While another process holds it, call ``waiting(holder)`` once and wait."""
+    if str(path) in _held:  # an earlier launch in this process died without releasing it
+        return
+    try:
+        import fcntl
+    except ImportError:  # Windows: launches of one sweep are not serialised
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fh = open(path, "a+")
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.seek(0)
+        waiting(fh.read().strip() or "another process")
+        fcntl.flock(fh, fcntl.LOCK_EX)
+    fh.seek(0)
+    fh.truncate()
+    fh.write(f"process {os.getpid()} on {socket.gethostname()}")
+    fh.flush()
+    _held[str(path)] = fh
+
+
+def release_sweep(path: Path) -> None:
+    fh = _held.pop(str(path), None)
+    if fh is not None:
+        fh.close()  # releases the lock
+
+
+# ---------------------------------------------------------------------------- claiming a config
+REF_PREFIX = "sweep_ref."  # tag on a run that also belongs to another sweep: sweep_ref.<parent id> = sweep name
+
+
+def holder(client: MlflowClient, exp_id: str, chash: str, mine: str | None = None):
+    """The run that holds a config: a FINISHED model run with this hash, else the first-started RUNNING
+    one of a live process (``mine`` included); None when ``mine`` is that one or nothing holds it."""
+    from maglev.study.reap import stale
+
+    runs = client.search_runs([exp_id], filter_string=f"tags.config_hash = '{chash}' and tags.kind = 'model'",
+                              max_results=1000)
+    first = sorted((r for r in runs if r.info.status == "FINISHED" and r.info.run_id != mine),
+                   key=lambda r: (r.info.start_time, r.info.run_id))
+    if not first:
+        first = sorted((r for r in runs if r.info.status == "RUNNING" and not stale(r)),
+                       key=lambda r: (r.info.start_time, r.info.run_id))
+    if not first or first[0].info.run_id == mine:
+        return None
+    return first[0]
+
+
+def claim(client: MlflowClient, exp_id: str, uri: str, chash: str, create) -> tuple[str | None, object]:
+    """Create this config's run with ``create()`` unless another run holds the config: ``(run id, None)``,
+    or ``(None, the holding run)``.
+
+    On a SQLite store the look-up and the creation happen under :func:`store_lock`, so two
+    processes never both create a run of one config.  A server offers no lock: the run is
+    created, then the config looked up again, and the run deleted when an earlier one of a
+    live process holds it — two jobs starting within the same few milliseconds on clocks
+    that disagree may still both run; the ranking keeps one run per config.
+    """
+    with store_lock(uri):
+        found = holder(client, exp_id, chash)
+        if found is not None:
+            return None, found
+        run_id = create()
+    if sqlite_path(uri) is None:
+        found = holder(client, exp_id, chash, mine=run_id)
+        if found is not None:
+            client.delete_run(run_id)
+            return None, found
+    return run_id, None
+
+
+def reference(client: MlflowClient, run, parent: str | None, sweep: str) -> None:
+    """Make ``run`` (of another sweep, or none) part of the sweep ``parent`` as well (``sweep_ref.<parent>``)."""
+    if parent and run.data.tags.get("mlflow.parentRunId") != parent:
+        client.set_tag(run.info.run_id, f"{REF_PREFIX}{parent}", sweep or "sweep")
 
 
 # ---------------------------------------------------------------------------- how the UI shows the study
@@ -157,7 +324,11 @@ def tag_experiment(client: MlflowClient, exp_id: str, share: dict[str, dict] | N
         wanted[NOTE] = EXPERIMENT_NOTE
     for key, value in wanted.items():
         if tags.get(key) != value:
-            client.set_experiment_tag(exp_id, key, value)
+            try:
+                client.set_experiment_tag(exp_id, key, value)
+            except mlflow.exceptions.MlflowException:  # a server store has no lock: another process wrote it
+                if key not in client.get_experiment(exp_id).tags:
+                    raise
 
 
 def source_tags(entry: str) -> dict[str, str]:
@@ -193,7 +364,7 @@ def dataset_entity(data, source: str | None, spec: dict | None = None):
     if source:
         kind, where = "local", json.dumps({"uri": source})
     else:
-        kind, where = "code", json.dumps({"tags": {"mlflow.source.name": "maglev.labdata"}})
+        kind, where = "code", json.dumps({"tags": {"mlflow.source.name": "maglev.sim.labdata"}})
     schema = {"mlflow_colspec": [{"name": "u", "type": "double"}, {"name": "y", "type": "double"}]}
     profile = {"num_rows": data.N, "Ts_s": data.Ts, "u_unit": U_UNIT, "y_unit": Y_UNIT,
                "u_offset": data.u_offset, "y_offset": data.y_offset, **({"spec": spec} if spec else {})}
@@ -209,9 +380,14 @@ def log_dataset_inputs(client: MlflowClient, run_id: str, est, val, source: str 
     from mlflow.entities import DatasetInput, InputTag
     from mlflow.utils.mlflow_tags import MLFLOW_DATASET_CONTEXT
 
-    client.log_inputs(run_id, datasets=[
-        DatasetInput(dataset_entity(part, source, spec), tags=[InputTag(MLFLOW_DATASET_CONTEXT, context)])
-        for part, context in ((est, "estimation"), (val, "validation"))])
+    inputs = [DatasetInput(dataset_entity(part, source, spec), tags=[InputTag(MLFLOW_DATASET_CONTEXT, context)])
+              for part, context in ((est, "estimation"), (val, "validation"))]
+    try:
+        client.log_inputs(run_id, datasets=inputs)
+    except mlflow.exceptions.MlflowException:
+        # MLflow looks a dataset up, then inserts it: two processes logging the same new dataset at once
+        # both insert it and one fails (UNIQUE constraint failed: datasets...); again, it finds the other's
+        client.log_inputs(run_id, datasets=inputs)
 
 
 # ---------------------------------------------------------------------------- provenance
@@ -247,17 +423,26 @@ def finished_run(client: MlflowClient, exp_id: str, chash: str) -> str | None:
 
 
 def sweep_parent(sweep_dir: str | None) -> str | None:
-    """The running sweep's parent run: from ``<sweep dir>/parent_run_id`` (written by the sweep
-    callback, readable on a cluster), else ``$MAGLEV_PARENT_RUN_ID``; None outside a sweep."""
+    """The running sweep's parent run: ``$MAGLEV_PARENT_RUN_ID`` (set by the sweep callback, inherited by
+    local workers; exact when two sweeps of one name share the sweep dir), else ``<sweep dir>/parent_run_id``
+    (written by the callback, readable on a cluster); None outside a sweep."""
     if not sweep_dir:
         return None
+    if os.environ.get(PARENT_ENV):
+        return os.environ[PARENT_ENV]
     f = Path(sweep_dir) / PARENT_FILE
     text = f.read_text().strip() if f.is_file() else ""
-    return text or os.environ.get(PARENT_ENV) or None
+    return text or None
 
 
 def children(client: MlflowClient, exp_id: str, parent_id: str) -> list:
     return client.search_runs([exp_id], filter_string=f"tags.`mlflow.parentRunId` = '{parent_id}'",
+                              max_results=50000)
+
+
+def referenced(client: MlflowClient, exp_id: str, parent_id: str) -> list:
+    """Model runs of other sweeps that the sweep ``parent_id`` counts as its own (:func:`reference`)."""
+    return client.search_runs([exp_id], filter_string=f"tags.`{REF_PREFIX}{parent_id}` != '' and tags.kind = 'model'",
                               max_results=50000)
 
 

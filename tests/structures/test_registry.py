@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from maglev import IOData
-from maglev.estimate import estimate
+from maglev.estimation import estimate
 from maglev.lab.signals import random_binary
 from maglev.structures import PolySpec, Structure, get, names, register, unregister
 

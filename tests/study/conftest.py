@@ -1,23 +1,76 @@
-"""Fixtures shared by the study's test modules."""
+"""Fixtures of the study tests: an empty MLflow store made once per session and copied; one
+``mlflow server`` on 127.0.0.1 shared by the tests that need a server (each in its own experiment)."""
 
 from __future__ import annotations
 
-import contextlib
-import io
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
 
 import pytest
 
-from .harness import launch
+
+@pytest.fixture(scope="session")
+def migrated_db(tmp_path_factory) -> Path:
+    """An empty MLflow SQLite store (tables only), created once: MLflow's migrations of a fresh
+    file take 5–10 s, which a test that is not about creating the store need not pay again."""
+    from maglev.study.tracking import new_client
+
+    path = tmp_path_factory.mktemp("migrated") / "mlflow.db"
+    new_client(f"sqlite:///{path}")
+    return path
+
+
+@pytest.fixture
+def migrated_store(tmp_path, migrated_db) -> Path:
+    """``tmp_path`` holding a copy of the empty store as ``mlflow.db`` (what the harness's overrides use)."""
+    shutil.copyfile(migrated_db, tmp_path / "mlflow.db")
+    return tmp_path
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="session")
-def default_sweep(tmp_path_factory):
-    """The default sweep as a user runs it (``python study.py -m +sweep=lab``: its datasets at full length, its
-    structures and orders, the BLA, the lab steps), ranked and reported by the callback, but without the run
-    figures (the report draws its own).  Shared by the report's tests and the default sweep's own checks, so
-    the suite runs it once.  Returns (store, report dir, stdout)."""
-    store = tmp_path_factory.mktemp("default-sweep")
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        launch(store, "+sweep=lab", "tracking.log_figures=false", rank=True)
-    return store, store / "reports", out.getvalue()
+def mlflow_server(tmp_path_factory):
+    """`mlflow server` on a free 127.0.0.1 port, one worker, no job runner, started once (≈ 10 s);
+    always killed.  Tests keep apart by experiment name (``tracking.experiment``)."""
+    home = tmp_path_factory.mktemp("server")
+    port = free_port()
+    env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
+    cmd = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", f"sqlite:///{home}/server.db",
+           "--artifacts-destination", str(home / "server-artifacts"), "--host", "127.0.0.1",
+           "--port", str(port), "--workers", "1"]
+    log = open(home / "server.log", "w")
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=home, start_new_session=True)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                with urllib.request.urlopen(f"{base}/health", timeout=2) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                pass
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"mlflow server did not start: {(home / 'server.log').read_text()[-3000:]}")
+            time.sleep(0.5)
+        yield base
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)  # the server's own process group (uvicorn workers)
+            proc.wait(timeout=20)
+        except (ProcessLookupError, subprocess.TimeoutExpired):
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+        log.close()

@@ -71,6 +71,17 @@ def study_log():
         logger.setLevel(level)
 
 
+def process_env(drop: str = "MLFLOW_TRACKING_URI") -> dict[str, str]:
+    """The environment of a study process: without variables starting with ``drop``, and with this
+    checkout first on ``PYTHONPATH`` — submitit's job processes start in the launch directory, where
+    ``import maglev`` would otherwise find whichever checkout is pip-installed."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), env.get("PYTHONPATH", "")) if p)
+    return env
+
+
 def study_process(store: Path, *args: str, timeout: float = 300, env: dict | None = None,
                   check: bool = True) -> subprocess.CompletedProcess:
     """``python study.py ARGS`` as a process (for what only a process shows), logging under ``store``."""

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from maglev.models import PolyModel
+from maglev.model import PolyModel
 from maglev.study.cautions import cautions
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")

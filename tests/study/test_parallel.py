@@ -1,14 +1,12 @@
-"""Parallel and server modes: joblib workers sharing one SQLite store; an `mlflow server` on 127.0.0.1."""
+"""Parallel and server modes: joblib workers sharing one SQLite store; an `mlflow server` on 127.0.0.1
+(the ``mlflow_server`` fixture, conftest.py)."""
 
 from __future__ import annotations
 
 import json
 import os
-import signal
-import socket
 import subprocess
 import sys
-import time
 import urllib.request
 from pathlib import Path
 
@@ -33,12 +31,6 @@ def test_joblib_two_workers_lose_no_run(tmp_path):
     assert len({r.data.tags["config_hash"] for r in kids}) == 4
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _api(base: str, endpoint: str, body: dict | None = None) -> dict:
     data = None if body is None else json.dumps(body).encode()
     req = urllib.request.Request(f"{base}/api/2.0/mlflow/{endpoint}", data=data,
@@ -47,47 +39,12 @@ def _api(base: str, endpoint: str, body: dict | None = None) -> dict:
         return json.loads(resp.read())
 
 
-@pytest.fixture
-def mlflow_server(tmp_path):
-    """`mlflow server` on a free 127.0.0.1 port, one worker, no job runner; always killed."""
-    port = _free_port()
-    env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
-    cmd = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", f"sqlite:///{tmp_path}/server.db",
-           "--artifacts-destination", str(tmp_path / "server-artifacts"), "--host", "127.0.0.1",
-           "--port", str(port), "--workers", "1"]
-    log = open(tmp_path / "server.log", "w")
-    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=tmp_path,
-                            start_new_session=True)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 120
-        while True:
-            try:
-                with urllib.request.urlopen(f"{base}/health", timeout=2) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                pass
-            if proc.poll() is not None or time.monotonic() > deadline:
-                pytest.fail(f"mlflow server did not start: {(tmp_path / 'server.log').read_text()[-3000:]}")
-            time.sleep(0.5)
-        yield base
-    finally:
-        try:
-            os.killpg(proc.pid, signal.SIGTERM)  # the server's own process group (uvicorn workers)
-            proc.wait(timeout=20)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
-        log.close()
-
-
 @pytest.mark.slow
 def test_server_mode_runs_are_listed_by_the_rest_api(tmp_path, mlflow_server):
     store = tmp_path / "client"
     store.mkdir()
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "tracking=server", f"tracking.uri={mlflow_server}",
-           "dataset=uniform_narrow", "structure=arx,oe", *TINY,
+           "dataset=uniform_narrow", "structure=arx,oe", *TINY, "study.true_plant=false", "lab.enabled=false",
            f"hydra.sweep.dir={store}/multirun", f"hydra.run.dir={store}/outputs",
            f"hydra.callbacks.maglev_rank.report_dir={store}/reports"]  # ranking via the server too
     env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}

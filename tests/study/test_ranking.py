@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from maglev.models import PolyModel
+from maglev.model import PolyModel
 
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
 
@@ -234,16 +234,18 @@ def test_missing_store_unknown_and_empty_experiment_are_clear_errors(tmp_path, c
     assert code == 2 and "not a sweep parent run" in err
 
 
-def test_parent_id_comes_from_the_sweep_dir_else_the_environment(tmp_path, monkeypatch):
+def test_parent_id_comes_from_the_environment_else_the_sweep_dir(tmp_path, monkeypatch):
     from maglev.study.tracking import PARENT_ENV, PARENT_FILE, sweep_parent
 
     monkeypatch.delenv(PARENT_ENV, raising=False)
     assert sweep_parent(str(tmp_path)) is None
+    (tmp_path / PARENT_FILE).write_text("from-file\n")
+    assert sweep_parent(str(tmp_path)) == "from-file"  # a cluster job: only the shared sweep dir
+    # the launching process and its local workers: exact even when another sweep of the same
+    # name (same sweep dir) has rewritten the file meanwhile
     monkeypatch.setenv(PARENT_ENV, "from-env")
     assert sweep_parent(str(tmp_path)) == "from-env"
     assert sweep_parent(None) is None  # not a sweep: no parent, whatever the environment says
-    (tmp_path / PARENT_FILE).write_text("from-file\n")
-    assert sweep_parent(str(tmp_path)) == "from-file"
 
 
 def test_markdown_table_escapes_and_formats():
@@ -254,7 +256,7 @@ def test_markdown_table_escapes_and_formats():
 
 
 def test_resid_json_round_trips_into_a_resid_result():
-    from maglev.validate import ResidResult
+    from maglev.validation import ResidResult
 
     r = ResidResult.from_dict(json.loads(json.dumps(resid_json(0.2))))
     assert r.white and r.auto_outside == 0.2 and list(r.cross_lags) == list(range(-5, 6))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import time
+from concurrent.futures.process import EXTRA_QUEUED_CALLS
 
 import pytest
 
@@ -67,14 +68,15 @@ def test_drain_draws_the_runs_the_busy_renderer_has_not_started(store):
     uri, client, exp = store
     render.start()
     render._pool.submit(time.sleep, 3)  # the renderer is busy
-    runs = [client.create_run(exp).info.run_id for _ in range(3)]
+    runs = [client.create_run(exp).info.run_id for _ in range(5)]
     for run in runs:
         render.submit(uri, run, inputs=None)
-    time.sleep(0.5)  # the pool hands at most one queued run to its process ahead of time
+    time.sleep(0.5)
     futures = {run: render._pending[run][1] for run in runs}
     assert render.drain() == {}
     drawn_here = [run for run, fut in futures.items() if fut.cancelled()]  # the renderer never ran these
-    assert len(drawn_here) >= 2
+    handed_ahead = render.WORKERS + EXTRA_QUEUED_CALLS  # the pool's call queue: runs taken before they start
+    assert len(drawn_here) >= len(runs) - handed_ahead
     for run in runs:  # each finished, with its drawing error tagged (inputs=None), none lost
         got = client.get_run(run)
         assert got.info.status == "FINISHED" and got.data.tags["figures_error"].startswith("AttributeError")

@@ -5,9 +5,11 @@ the working region and its motivation, the three input signals and why (ranges v
 working region, α* from the spectra), the data used for estimation and validation, the
 structures and the motivation of their orders (loss/FPE/AIC vs order, near pole-zero
 cancellations), the top-four ranking, binary vs uniform input for one structure, and
-best vs worst.  Written to ``reports/<sweep>.html`` (default) and logged as
-``report/<sweep>.html`` to the sweep's ranking run — the latest one that ranked the
-same runs, else a new one.  ``maglev report`` and the end-of-sweep callback call it.
+best vs worst.  Written to ``reports/<sweep>-<id>.html`` (default; ``<id>``: the first 8
+characters of the sweep's ``sweep_id``, so two sweeps of one name never overwrite each
+other's report, and a relaunch of the same sweep updates its own) and logged under the
+same name to the sweep's ranking run — the latest FINISHED one that ranked the same
+runs, else a new one.  ``maglev report`` and the end-of-sweep callback call it.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import html
 from pathlib import Path
 
 from maglev.paths import reports_dir
-from maglev.study.ranking import Ranking, compute, log_ranking, previous_ranking_run, top_text, ui_hint
+from maglev.study.ranking import Ranking, compute, log_ranking, previous_ranking_run, report_name, top_text, ui_hint
 from maglev.study.report import sections as sec
 from maglev.study.store import SweepError, artifact_bytes, artifact_json, load_model, load_sweep
 from maglev.study.tracking import log_files
@@ -83,7 +85,7 @@ def build(ranking: Ranking, ranking_run: str) -> str:
 
 def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = None) -> Path:
     """Write the page (``out``: a file, a directory, or None for ``reports/``) and log it to the ranking run."""
-    name = f"{ranking.sweep.name}.html"
+    name = report_name(ranking.sweep)
     path = Path(out) if out else reports_dir()
     if path.suffix.lower() != ".html":
         path = path / name
@@ -95,7 +97,8 @@ def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = No
 
 
 def ranking_run_for(ranking: Ranking) -> str:
-    """The latest ranking run of the sweep that ranked exactly these runs; a new one if there is none."""
+    """The latest FINISHED ranking run of the sweep that ranked exactly these runs; a new one if there is
+    none (a ranking run killed half-way is never reused)."""
     return previous_ranking_run(ranking) or log_ranking(ranking)
 
 

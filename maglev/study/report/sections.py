@@ -15,7 +15,7 @@ from collections.abc import Iterable
 import numpy as np
 import pandas as pd
 
-from maglev.models import CANCEL_TOL
+from maglev.model import CANCEL_TOL
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, order_choice
@@ -346,7 +346,7 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
     import control as ct
 
     from maglev.lab import averages
-    from maglev.plant import Levitator
+    from maglev.sim.plant import Levitator
     from maglev.study.datasets import dataset_bla
     from maglev.study.figures import preparation_figure
 

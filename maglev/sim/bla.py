@@ -1,0 +1,364 @@
+"""The best linear approximation (BLA) of the levitator for an input class, and the FRF of a record.
+
+Why: a linear model of a nonlinear plant can only be scored against the linear
+system that is best *for the inputs it was identified with* (Pintelon & Schoukens,
+ch. 3; ``shared/notes/bla.md``).  For a stationary random input class (uniform white
+noise on [low, high], or the lab's random binary signal with switching probability
+α) the BLA is G_BLA = S_yu / S_uu, and y = G_BLA u + y_s with the nonlinear
+distortion y_s uncorrelated with u.  Then for every linear G driven by that class
+
+    E|y - G u|² = ‖G_BLA - G‖²_Φu + var(y_s),
+
+so the input-spectrum-weighted distance is a model's excess simulation error on
+the class and the BLA's own simulation FIT is the ceiling of every linear model.
+
+:func:`bla` estimates it from the noise-free simulator: M realisations of the class
+(the study's own generators, :func:`maglev.sim.labdata.input_signal`, with other seeds;
+same length and Ts), each preprocessed as the study does (trim the start-up,
+detrend, decimate), cross- and auto-spectra averaged over realisations and Welch
+segments.  Its standard error comes from the spread of the per-realisation
+estimates.  The sensor noise *and* the simulator's process noise (a 2e-4 N white
+force, output std < 3e-4 cm) are switched off (``simulate(noise=False)``): the BLA
+is a property of the deterministic plant and the input class.  Results are cached in
+memory and on disk (``$MAGLEV_CACHE`` or ``~/.cache/maglev``) under a hash of
+everything that determines them.
+
+:func:`frequency_response` is the same estimator on one measured record (MATLAB's
+``spa``-style Welch estimate), with its standard error from the coherence and the
+number of averaged segments.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+from maglev.data import IOData
+from maglev.sim.labdata import ExperimentSpec, input_signal
+from maglev.sim.plant import Levitator
+
+__all__ = ["Preprocess", "FrequencyResponse", "BLA", "bla", "frequency_response", "weighted_distance",
+           "relative_distance", "SEGMENT_S", "REALISATIONS"]
+
+VERSION = 1  # bump when the estimator changes: old disk-cache entries are then ignored
+SEGMENT_S = 2.0  # s (as labelled) per Welch segment: shorter ones leak the slow friction dynamics (bias, docs)
+REALISATIONS = 16  # default M: ≈ 2.5 s for a 24 s class on the idle 2-core machine, |SE|/|G| ≈ 2.5-4.5 %
+SEED0 = 2 ** 20  # realisation m uses seed SEED0 + m: far from the seeds datasets use
+_HANN_OVERLAP_RHO = 0.1667  # correlation of Hann segments overlapping by 50 % (Welch 1967)
+
+System = Callable[[np.ndarray, int], np.ndarray]  # (command samples, seed) -> noise-free output
+
+
+@dataclass(frozen=True)
+class Preprocess:
+    """The study's preprocessing, applied in this order: trim, detrend, decimate."""
+
+    trim: int = 2000  # samples dropped at the start (the start-up transient)
+    detrend: bool = True  # remove the means of u and y
+    decimate: int = 1  # keep every k-th sample after the anti-aliasing filter
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.trim, (int, np.integer)) or self.trim < 0:
+            raise ValueError(f"Preprocess.trim must be an integer >= 0, got {self.trim!r}")
+        if not isinstance(self.decimate, (int, np.integer)) or self.decimate < 1:
+            raise ValueError(f"Preprocess.decimate must be an integer >= 1, got {self.decimate!r}")
+
+    def apply(self, data: IOData) -> IOData:
+        data = data.trim(int(self.trim)) if self.trim else data
+        data = data.detrend() if self.detrend else data
+        return data.decimate(int(self.decimate))
+
+
+@dataclass(frozen=True)
+class FrequencyResponse:
+    """A nonparametric frequency response Ĝ(e^{jωTs}) = Σ S_yu / Σ S_uu and what it rests on.
+
+    Spectra are one-sided Welch densities per Hz (so Σ S·df is the signal's power,
+    ``df = w[1] / 2π``).  ``std`` is the RMS error sqrt(E|Ĝ - G|²) of the complex
+    estimate (the magnitude's and the phase's standard errors are ≈ std/√2 and
+    std/(√2|G|)); ``coherence`` is |S_yu|² / (S_uu S_yy).
+    """
+
+    w: np.ndarray  # rad/s on the time base of the (preprocessed) data, 0 .. π/Ts
+    G: np.ndarray  # complex frequency response
+    std: np.ndarray  # RMS error of G
+    coherence: np.ndarray
+    Suu: np.ndarray  # input PSD [u²/Hz]
+    Syy: np.ndarray  # output PSD [y²/Hz]
+    Ts: float  # s, sampling period of the preprocessed data
+    averages: int  # Welch segments averaged (over all records)
+
+    @property
+    def df(self) -> float:
+        return float(self.w[1] / (2 * math.pi))
+
+    @property
+    def magnitude_db(self) -> np.ndarray:
+        return 20 * np.log10(np.abs(self.G))
+
+    def bounds(self, level: float = 0.99, name: str | None = None) -> "FrequencyBounds":
+        """The estimate with pointwise bounds at ``level`` (ω > 0), for :func:`maglev.plots.plot_bode`.
+
+        The complex error is taken as circular: the magnitude's standard error is std/√2 and
+        the phase's std/(√2 |G|) (in degrees).
+        """
+        from maglev.uncertainty import FrequencyBounds, multiplier
+
+        keep = self.w > 0
+        sd_mag = self.std[keep] / math.sqrt(2.0)
+        k, coverage = multiplier(level)
+        return FrequencyBounds(w=self.w[keep], response=self.G[keep], sd_magnitude=sd_mag,
+                               sd_phase=np.degrees(sd_mag / np.abs(self.G[keep])), k=k, level=coverage, name=name)
+
+    def simulate(self, u: np.ndarray) -> np.ndarray:
+        """G u as a frequency-domain (two-sided FIR) filter: the inverse FFT of G on the Welch grid.
+
+        The impulse response has one segment's length, centred on lag 0 (the estimate
+        leaks a little into negative lags, which are kept so the filter is exactly G on
+        the grid); the first and last half segment of the output lack part of their past
+        or future input.
+        """
+        n = 2 * (self.w.size - 1)
+        g = np.fft.irfft(self.G, n=n)
+        two_sided = np.r_[g[n // 2:], g[: n // 2]]  # lags -n/2 .. n/2 - 1
+        full = np.convolve(np.asarray(u, dtype=float), two_sided)
+        return full[n // 2: n // 2 + len(u)]
+
+
+@dataclass(frozen=True)
+class BLA(FrequencyResponse):
+    """The simulator's best linear approximation for one input class (see :func:`bla`).
+
+    ``distortion_variance`` is var(y_s), the mean square of y - G_BLA u over the
+    realisations (``simulate``; the first and last half segment of each left out),
+    ``output_variance`` the mean square of y over the same samples.
+    """
+
+    spec: ExperimentSpec  # the input class (its ``seed`` is not used: realisations use SEED0 + m)
+    preprocess: Preprocess
+    realisations: int
+    distortion_variance: float  # var(y_s) [y²]
+    output_variance: float  # var(y) [y²]
+
+    @property
+    def linear_variance(self) -> float:
+        """‖G_BLA‖²_Φu = Σ |G|² S_uu df: the power of the BLA's output."""
+        return float(np.sum(np.abs(self.G) ** 2 * self.Suu) * self.df)
+
+    @property
+    def fit_ceiling(self) -> float:
+        """Simulation FIT [%] of G_BLA itself on the class, 100 (1 - sqrt(var(y_s) / var(y))): no linear model does better."""
+        return 100.0 * (1.0 - math.sqrt(self.distortion_variance / self.output_variance))
+
+
+# ---------------------------------------------------------------------- estimation
+def _spectra(data: IOData, nperseg: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """(f [Hz], S_uu, S_yy, S_yu, segments) of one record, Hann windows overlapping by half."""
+    if data.N < nperseg:
+        raise ValueError(f"{data.name or 'record'}: {data.N} samples are fewer than one Welch segment "
+                         f"({nperseg}); use a longer record or a shorter segment")
+    kw = dict(fs=1.0 / data.Ts, window="hann", nperseg=nperseg, noverlap=nperseg // 2, detrend=False)
+    f, suu = signal.welch(data.u, **kw)
+    _, syy = signal.welch(data.y, **kw)
+    _, syu = signal.csd(data.u, data.y, **kw)  # conj(U) Y: S_yu in the convention G = S_yu / S_uu
+    return f, suu, syy, syu, 1 + (data.N - nperseg) // (nperseg // 2)
+
+
+def _segment(Ts: float, segment_s: float) -> int:
+    n = int(round(segment_s / Ts))
+    return n + n % 2
+
+
+def _effective(segments: int) -> float:
+    """Independent averages equivalent to ``segments`` Hann segments overlapping by half."""
+    return segments / (1 + 2 * _HANN_OVERLAP_RHO ** 2)
+
+
+def frequency_response(data: IOData, segment_s: float = SEGMENT_S) -> FrequencyResponse:
+    """Welch (``spa``-style) frequency-response estimate of one record, as it is (preprocess it first).
+
+    Standard error from the coherence and the number of averaged segments n
+    (Bendat & Piersol): sqrt(E|Ĝ - G|²) = |Ĝ| sqrt((1 - γ²) / (γ² n)), with n the
+    segments' equivalent number of independent averages.
+    """
+    f, suu, syy, syu, k = _spectra(data, _segment(data.Ts, segment_s))
+    coh = np.abs(syu) ** 2 / np.maximum(suu * syy, np.finfo(float).tiny)
+    G = syu / suu
+    std = np.abs(G) * np.sqrt((1 - coh) / (np.maximum(coh, 1e-12) * _effective(k)))
+    return FrequencyResponse(w=2 * np.pi * f, G=G, std=std, coherence=coh, Suu=suu, Syy=syy, Ts=data.Ts,
+                             averages=k)
+
+
+def _system_of(plant: Levitator, Ts: float) -> System:
+    return lambda u, seed: plant.simulate(u, Ts=Ts, seed=seed, noise=False).y
+
+
+def _estimate(spec: ExperimentSpec, system: System, preprocess: Preprocess, realisations: int,
+              segment_s: float) -> BLA:
+    if realisations < 2:
+        raise ValueError(f"realisations must be >= 2 (the standard error needs a spread), got {realisations!r}")
+    records, per = [], []
+    for m in range(realisations):
+        seed = SEED0 + m
+        u = input_signal(replace(spec, seed=seed))
+        records.append(preprocess.apply(IOData(u=u, y=np.asarray(system(u, seed), dtype=float), Ts=spec.Ts)))
+        per.append(_spectra(records[-1], _segment(records[-1].Ts, segment_s)))
+    f = per[0][0]
+    suu_m, syy_m, syu_m = (np.array([p[i] for p in per]) for i in (1, 2, 3))
+    suu, syy, syu = suu_m.sum(0), syy_m.sum(0), syu_m.sum(0)
+    G = syu / suu
+    weights = suu_m / suu  # Ĝ = Σ_m weights_m G_m
+    spread = np.sum(weights ** 2 * np.abs(syu_m / suu_m - G) ** 2, axis=0) * realisations / (realisations - 1)
+    coh = np.abs(syu) ** 2 / np.maximum(suu * syy, np.finfo(float).tiny)
+    n = realisations
+    est = BLA(w=2 * np.pi * f, G=G, std=np.sqrt(spread), coherence=coh, Suu=suu / n, Syy=syy / n,
+              Ts=spec.Ts * preprocess.decimate, averages=sum(p[4] for p in per), spec=spec,
+              preprocess=preprocess, realisations=n, distortion_variance=math.nan, output_variance=math.nan)
+    # var(y_s) in the time domain: the spectral form Σ S_yy (1 - γ²) df is biased up by leakage
+    half = f.size - 1  # half a segment: the filter's reach on either side
+    inner = [(d.y[half:-half], est.simulate(d.u)[half:-half]) for d in records]
+    return replace(est, distortion_variance=float(np.mean(np.concatenate([y - g for y, g in inner]) ** 2)),
+                   output_variance=float(np.mean(np.concatenate([y for y, _ in inner]) ** 2)))
+
+
+# ---------------------------------------------------------------------- cache
+_MEMORY: dict[str, BLA] = {}
+_ARRAYS = ("w", "G", "std", "coherence", "Suu", "Syy")
+
+
+def cache_dir() -> Path:
+    """``$MAGLEV_CACHE/bla`` or ``~/.cache/maglev/bla``."""
+    root = os.environ.get("MAGLEV_CACHE")
+    return (Path(root) if root else Path.home() / ".cache" / "maglev") / "bla"
+
+
+def cache_key(spec: ExperimentSpec, plant: Levitator, preprocess: Preprocess, realisations: int,
+              segment_s: float) -> str:
+    """Hash of everything that determines the estimate (estimator version included)."""
+    klass = {k: v for k, v in asdict(spec).items() if k != "seed"}
+    what = {"version": VERSION, "class": klass, "preprocess": asdict(preprocess), "realisations": realisations,
+            "seed0": SEED0, "segment_s": segment_s, "plant": type(plant).__qualname__,
+            "params": asdict(plant.params), "physical_time": plant.physical_time, "zero_at_10": plant.zero_at_10}
+    text = json.dumps(what, sort_keys=True, default=float)
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def _save(path: Path, est: BLA) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    meta = {"Ts": est.Ts, "averages": est.averages, "spec": asdict(est.spec),
+            "preprocess": asdict(est.preprocess), "realisations": est.realisations,
+            "distortion_variance": est.distortion_variance, "output_variance": est.output_variance}
+    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez(tmp, meta=json.dumps(meta), **{k: getattr(est, k) for k in _ARRAYS})
+    os.replace(tmp, path)
+
+
+def _load(path: Path) -> BLA | None:
+    try:
+        with np.load(path) as z:
+            meta = json.loads(str(z["meta"]))
+            arrays = {k: z[k] for k in _ARRAYS}
+    except (OSError, ValueError, KeyError):  # missing or unreadable: estimate afresh
+        return None
+    return BLA(**arrays, Ts=meta["Ts"], averages=meta["averages"], spec=ExperimentSpec(**meta["spec"]),
+               preprocess=Preprocess(**meta["preprocess"]), realisations=meta["realisations"],
+               distortion_variance=meta["distortion_variance"], output_variance=meta["output_variance"])
+
+
+def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, preprocess: Preprocess | None = None,
+        realisations: int = REALISATIONS, segment_s: float = SEGMENT_S,
+        cache: bool | str | Path = True) -> BLA:
+    """The best linear approximation of ``plant`` for the input class ``spec`` (kind uniform or binary).
+
+    ``plant``: a :class:`~maglev.sim.plant.Levitator` (default: the lab's,
+    ``Levitator(zero_at_10=True)``), simulated noise-free; or any function
+    ``(u, seed) -> y`` (not cached).  Each of ``realisations`` records of the class
+    (seeds ``SEED0 + m``, the spec's length and Ts) is preprocessed by ``preprocess``
+    (default: the study's trim 2000, detrend, no decimation), so G is on the time base
+    of models identified with those settings.  ``cache``: True (memory and
+    :func:`cache_dir`), a directory, or False.
+    """
+    if spec.kind not in ("uniform", "binary"):
+        raise ValueError(f"the BLA needs a stationary random input class (kind 'uniform' or 'binary'), "
+                         f"got kind={spec.kind!r}")
+    preprocess = preprocess or Preprocess()
+    plant = Levitator(zero_at_10=True) if plant is None else plant
+    if not isinstance(plant, Levitator):
+        return _estimate(spec, plant, preprocess, realisations, segment_s)
+    key = cache_key(spec, plant, preprocess, realisations, segment_s)
+    if cache is not False and key in _MEMORY:
+        return replace(_MEMORY[key], spec=spec)
+    path = (cache_dir() if cache is True else Path(cache)) / f"{key}.npz" if cache is not False else None
+    est = _load(path) if path is not None and path.is_file() else None
+    if est is None:
+        est = _estimate(spec, _system_of(plant, spec.Ts), preprocess, realisations, segment_s)
+        if path is not None:
+            try:
+                _save(path, est)
+            except OSError:  # an unwritable cache directory only costs the next run the estimate
+                pass
+    if cache is not False:
+        _MEMORY[key] = est
+    return replace(est, spec=spec)
+
+
+# ---------------------------------------------------------------------- distances
+OVERSAMPLE = 32  # frequencies per Welch bin when the model's response is a function (converged to 1e-3)
+
+
+def _norm2(x: np.ndarray, weight: np.ndarray) -> float:
+    return float(np.sum(np.abs(x) ** 2 * weight))
+
+
+def weighted_distance(G_model: np.ndarray | Callable[[np.ndarray], np.ndarray], ref: FrequencyResponse) -> float:
+    """‖G - G_BLA‖_Φu / ‖G_BLA‖_Φu: a model's excess simulation error on the class, relative.
+
+    ``G_model`` is the model's frequency response as a function of ω (e.g.
+    ``model.freqresp``, on the same sampling period), or its values at ``ref.w``.
+    Squared and times ‖G_BLA‖²_Φu it is E|y - G u|² - var(y_s).
+
+    Given the function, the integral is taken on a grid :data:`OVERSAMPLE` times finer
+    than the Welch frequencies, with G_BLA and Φu interpolated linearly between them:
+    a feature of G narrower than one Welch bin (a slow pole-zero pair near ω = 0, a
+    sharp resonance) then counts with the band it occupies.  Sampled at ``ref.w`` only,
+    such a feature counts with its value at one frequency.  An OE [4 4 2] model of the
+    lab's narrow uniform class has a pole at 0.99942 and a zero at 0.99996 (|G(0)| = 0.04
+    against 0.56 for the BLA, back to the BLA's level by 0.1 Hz): it scores 0.34 at the
+    Welch frequencies, 0.19 on the fine grid, and OE [3 3 2] 0.11 and 0.12.  On four
+    held-out records its mean square simulation error exceeds OE [3 3 2]'s by 0.18e-5 cm²;
+    the fine grid predicts 0.15e-5, the Welch frequencies 0.68e-5.
+    """
+    G_model, G_ref, Suu, quad = _on_grid(G_model, ref)
+    return math.sqrt(_norm2(G_model - G_ref, Suu * quad) / _norm2(G_ref, Suu * quad))
+
+
+def relative_distance(G_model: np.ndarray | Callable[[np.ndarray], np.ndarray], ref: FrequencyResponse) -> float:
+    """Unweighted ‖G - G_BLA‖ / ‖G_BLA‖ over 0 .. Nyquist (``G_model`` as for :func:`weighted_distance`)."""
+    G_model, G_ref, _, quad = _on_grid(G_model, ref)
+    return math.sqrt(_norm2(G_model - G_ref, quad) / _norm2(G_ref, quad))
+
+
+def _on_grid(G_model, ref: FrequencyResponse) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(G, G_BLA, Φu, quadrature weights) on the grid the norms are summed over: ``ref.w`` with unit
+    weights for values, the fine grid with trapezoid weights for a function."""
+    if not callable(G_model):
+        G_model = np.asarray(G_model)
+        if G_model.shape != ref.w.shape:
+            raise ValueError(f"G_model must be the model's response at the reference's {ref.w.size} frequencies "
+                             f"(e.g. model.freqresp(ref.w)) or a function of ω, got shape {G_model.shape}")
+        return G_model, ref.G, ref.Suu, np.ones(ref.w.size)
+    w = np.linspace(ref.w[0], ref.w[-1], (ref.w.size - 1) * OVERSAMPLE + 1)
+    G_ref = np.interp(w, ref.w, ref.G.real) + 1j * np.interp(w, ref.w, ref.G.imag)
+    Suu = ref.Suu.copy()
+    Suu[[0, -1]] *= 2  # Welch's one-sided density does not double its end bins; the density's limits there do
+    quad = np.full(w.size, w[1] - w[0])
+    quad[[0, -1]] /= 2
+    return np.asarray(G_model(w)), G_ref, np.interp(w, ref.w, Suu), quad

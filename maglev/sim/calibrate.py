@@ -1,0 +1,355 @@
+"""Fit the levitator simulator to the real KTH records (``python -m maglev.sim.calibrate``).
+
+Why: the defaults of :class:`maglev.sim.plant.LevitatorParams` must be reproducible from
+the public lab data.  ``python -m maglev.sim.calibrate`` runs fits 1, 3 and 2 (in that
+order) and prints the simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_real`:
+
+1. static: coil law (a, b, n), pull on the upper magnet (kappa), sensor offset and
+   regulator saturation, by least squares of the equilibria against the stationary
+   averages of the real staircase (``working_region``); c and d stay at the ECP values;
+2. noise: std, mains-ripple line (aliased frequency, width, share) and ADC step from
+   the constant-current record ``binary_signal_9``;
+3. dynamics with dry friction (``fit_friction``): Coulomb, Stribeck and creep-speed
+   friction of both bushings, viscous friction and the physical time per sample, by
+   Nelder-Mead on the log-parameters against the checks the calibration must pass
+   (``friction_errors``): ωn and ζ of the modes identified from binary_signal_1..4 and
+   white_noise_4 within 20 % (same settings for real and simulated records) and the
+   staircase's rise time within 25 %, with the static curve held within its tolerance;
+   and issue 15's checks: ARMAX [4 4 4 1] modes of binary_signal_2 (15 % / 30 %), output
+   stds of seven records within [0.8, 1.25] of the real ones, the α .25 / white-noise
+   std ratio within 25 %, and the frequency response within 3 dB where coherent.
+   Not run by default (``--friction-evals``): the defaults meet the first group but
+   not issue 15's, and a polish trades one for the other (docs/simulator.md).
+
+The real data are read in place (:mod:`maglev.refdata`), never copied.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import optimize, signal
+
+from maglev.sim import bla
+from maglev.data import IOData
+from maglev.sim.plant import Levitator, LevitatorParams
+from maglev.refdata import load_record, refdata_dir
+from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
+                                FRF_PREPROCESS, FRF_SEGMENT_S, FRF_TOLERANCE_DB, MODE_TOLERANCE, POLE_RECORDS,
+                                RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS, STAIR_TAIL, STATIC_NOISE_MULTIPLE,
+                                STD_RECORDS, STD_TOLERANCE, TRANSIENT_FRACTION, WHITE_RECORD, Comparison, Mode,
+                                armax_errors, armax_modes_of, compare, dominant_mode_of, fourth_order_modes_of,
+                                least_damped, noise_psd, output_std, quantisation_step, stair_averages, stair_step,
+                                two_modes)
+
+__all__ = ["fit_static", "fit_noise", "fit_friction", "friction_targets", "friction_errors",
+           "friction_cost", "main"]
+
+# parameters moved by fit_friction (all positive, fitted in log space)
+FRICTION_PARAMS = ("coulomb_lower", "coulomb_upper", "stiction_lower", "stiction_upper", "v_stribeck",
+                   "v_creep", "gamma_lower", "gamma_upper", "t_phys")
+
+
+# ---------------------------------------------------------------------- 1. static curve
+def fit_static(stair: IOData, base: Levitator) -> Levitator:
+    """Fit a, b, n_coil, kappa, y_off and i_sat to the staircase's stationary averages."""
+    u_bar, y_bar = stair_averages(stair)
+    p0 = base.params
+    x0 = np.array([p0.a, p0.b, p0.n_coil, p0.kappa, p0.y_off, p0.i_sat])
+
+    def model(x: np.ndarray) -> Levitator:
+        return base.with_params(a=x[0], b=x[1], n_coil=x[2], kappa=x[3], y_off=x[4], i_sat=x[5])
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        try:
+            return model(x).static_curve(u_bar) - y_bar
+        except ValueError:  # no equilibrium for these parameters: push the solver away
+            return np.ones_like(y_bar)
+
+    lower = [x0[0] * 1e-3, 0.3, 0.5, 0.0, -3.0, 3.5]
+    upper = [x0[0] * 1e3, 20.0, 8.0, 1.5, 3.0, 4.5]
+    res = optimize.least_squares(residual, x0, bounds=(lower, upper),
+                                 x_scale=[x0[0] / 10, 1.0, 1.0, 0.1, 0.1, 0.05])
+    return model(res.x)
+
+
+# ---------------------------------------------------------------------- 2. sensor noise
+def fit_noise(constant: IOData, base: Levitator) -> Levitator:
+    """Fit noise std, ripple line (share, radius, frequency) and ADC step to a constant-input record."""
+    y = constant.trim(TRANSIENT_FRACTION).y
+    f, psd = noise_psd(y)
+    std = float(np.std(y))
+    f_peak = float(f[np.argmax(psd)])
+
+    def model_psd(x: np.ndarray) -> np.ndarray:
+        frac, r = x
+        a1, a2 = -2 * r * math.cos(2 * math.pi * f_peak), r * r
+        _, h = signal.freqz([1.0], [1.0, a1, a2], worN=2 * np.pi * f)
+        var_ar = (1 + a2) / ((1 - a2) * ((1 + a2) ** 2 - a1 ** 2))
+        return 2 * std ** 2 * (frac * np.abs(h) ** 2 / var_ar + (1 - frac))
+
+    res = optimize.least_squares(lambda x: np.log(model_psd(x)) - np.log(psd), [0.6, 0.8],
+                                 bounds=([0.0, 0.0], [1.0, 0.99]))
+    dt = base.params.t_phys * constant.Ts / 1e-3
+    return base.with_params(noise_std=std, noise_line_fraction=float(res.x[0]),
+                            noise_line_radius=float(res.x[1]), noise_line_hz=(1.0 - f_peak) / dt,
+                            quant=quantisation_step(constant.y))
+
+
+# ---------------------------------------------------------------------- 3. dry friction
+@dataclass(frozen=True)
+class FrictionTargets:
+    """The real records' numbers that ``fit_friction`` matches (see :func:`friction_targets`)."""
+
+    inputs: dict[str, IOData]  # record -> real record (its input is replayed)
+    std: dict[str, float]  # record -> output std after trimming the start-up [cm]
+    modes: dict[str, Mode]  # binary record -> dominant OE(2,2,3) (ωn, ζ)
+    second_mode: Mode  # least-damped OE(4,4,5) mode of white_noise_4 (≈ 215 rad/s)
+    stair: IOData
+    y_bar: np.ndarray  # staircase stationary averages
+    static_tolerance: float  # cm, STATIC_NOISE_MULTIPLE x the sensor noise std at constant 3 A
+    rise: float  # samples
+    armax: tuple[Mode | None, Mode | None] = (None, None)  # ARMAX [4 4 4 1] modes of ARMAX_RECORD
+    frf: dict[str, bla.FrequencyResponse] | None = None  # FRF_RECORDS -> the real record's Welch estimate
+
+
+FRF_RECORDS = ("binary_signal_2", WHITE_RECORD)  # the frequency responses the fit scores (issue 15)
+MISSING_MODE_ERROR = 3.0  # tolerance-scaled error of an ARMAX mode the simulated record does not show
+
+
+def friction_targets(root: Path | None = None) -> FrictionTargets:
+    """Output std, identified modes, staircase averages, noise level and rise time of the real records."""
+    inputs = {r: load_record(r, root) for r in STD_RECORDS}
+    stair = load_record("working_region", root)
+    rise, _ = stair_step(stair)
+    noise_std = output_std(load_record("binary_signal_9", root))
+    return FrictionTargets(
+        inputs=inputs,
+        std={r: output_std(d) for r, d in inputs.items()},
+        modes={r: dominant_mode_of(inputs[r]) for r in POLE_RECORDS},
+        second_mode=least_damped(fourth_order_modes_of(inputs[WHITE_RECORD])),
+        stair=stair, y_bar=stair_averages(stair)[1], static_tolerance=STATIC_NOISE_MULTIPLE * noise_std,
+        rise=rise, armax=two_modes(armax_modes_of(inputs[ARMAX_RECORD])),
+        frf={r: _frf(inputs[r]) for r in FRF_RECORDS})
+
+
+def _frf(data: IOData) -> bla.FrequencyResponse:
+    return bla.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
+
+
+LEGACY_CHECKS = ("wn", "zeta", "rise time")  # key endings of the checks the defaults meet (issue 3)
+
+
+STD_FIT_FACTOR = 1.8  # output stds are penalised outside this factor of the real ones (checked: 2)
+STATIC_FIT_SHARE = 0.8  # the static rms is penalised above this share of its tolerance
+_NORM = 8  # the cost's norm of the relative errors: close to their maximum, but smooth
+
+
+def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple[dict[str, float], float]:
+    """Relative errors of the calibration's checks, each divided by its tolerance, and the penalties.
+
+    Errors (1.0 = at the tolerance): ωn and ζ of the dominant OE(2,2,3) mode of each
+    binary record and of white_noise_4's second mode (``MODE_TOLERANCE``), and the
+    staircase's rise time (``RISE_TOLERANCE``); issue 15's: ``armax slow/fast wn/zeta``
+    (ARMAX [4 4 4 1] of ``ARMAX_RECORD``, a mode the simulation lacks counts
+    ``MISSING_MODE_ERROR``), ``std <record>`` (|log ratio| / log ``STD_TOLERANCE``),
+    ``std ratio`` (α .25 / white noise) and ``frf <record>`` (largest |dB| difference
+    where the real coherence >= ``FRF_COHERENCE``, over ``FRF_TOLERANCE_DB``; the
+    simulated estimate is the replayed record's, one realisation of the class, where
+    ``maglev.sim.sim_vs_real`` prints the BLA over several).  Penalties (0 when met): every
+    output std within ``STD_FIT_FACTOR`` of the real one and the static rms below
+    ``STATIC_FIT_SHARE`` of its tolerance; a mode that cannot be identified costs 10.
+    """
+    errors: dict[str, float] = {}
+    penalty = 0.0
+
+    def mode_errors(name: str, sim: Mode, real: Mode) -> None:
+        nonlocal penalty
+        if not all(math.isfinite(v) and v > 0 for v in sim):
+            penalty += 10.0
+            return
+        errors[f"{name} wn"] = abs(sim[0] / real[0] - 1) / MODE_TOLERANCE
+        errors[f"{name} zeta"] = abs(sim[1] / real[1] - 1) / MODE_TOLERANCE
+
+    sims = {}
+    for rec, real in tg.inputs.items():
+        sim = sims[rec] = lev.simulate(real.u, Ts=real.Ts, seed=seed)
+        ratio = max(output_std(sim), 1e-6) / tg.std[rec]
+        errors[f"std {rec}"] = abs(math.log(ratio)) / math.log(STD_TOLERANCE)
+        penalty += 100.0 * max(0.0, abs(math.log(ratio)) - math.log(STD_FIT_FACTOR)) ** 2
+        try:
+            if rec in tg.modes:
+                mode_errors(rec, dominant_mode_of(sim), tg.modes[rec])
+            if rec == WHITE_RECORD:
+                mode_errors(f"{rec} second", least_damped(fourth_order_modes_of(sim)), tg.second_mode)
+        except (ValueError, np.linalg.LinAlgError):  # no model for these parameters
+            penalty += 10.0
+    errors.update(_issue15_errors(sims, tg))
+    sim_stair = lev.simulate(tg.stair.u, Ts=tg.stair.Ts, seed=seed)
+    rms = float(np.sqrt(np.mean((stair_averages(sim_stair)[1] - tg.y_bar) ** 2)))
+    penalty += 100.0 * max(0.0, rms / (STATIC_FIT_SHARE * tg.static_tolerance) - 1.0) ** 2
+    try:
+        rise, _ = stair_step(sim_stair)
+        errors["rise time"] = abs(rise / tg.rise - 1) / RISE_TOLERANCE
+    except ValueError:  # the steps never reach 90 %
+        penalty += 10.0
+    return errors, penalty
+
+
+def _issue15_errors(sims: dict[str, IOData], tg: FrictionTargets) -> dict[str, float]:
+    """Tolerance-scaled errors of the std ratio, the ARMAX modes and the frequency responses."""
+    white, big = WHITE_RECORD, "binary_signal_2"
+    ratio_sim = output_std(sims[big]) / max(output_std(sims[white]), 1e-9)
+    errors = {"std ratio": abs(ratio_sim / (tg.std[big] / tg.std[white]) - 1) / RATIO_TOLERANCE}
+    try:
+        sim_modes = two_modes(armax_modes_of(sims[ARMAX_RECORD]))
+    except (ValueError, np.linalg.LinAlgError):
+        sim_modes = (None, None)
+    for key, err in armax_errors(sim_modes, tg.armax).items():
+        tol = ARMAX_WN_TOLERANCE if key.endswith("wn") else ARMAX_ZETA_TOLERANCE
+        errors[f"armax {key}"] = MISSING_MODE_ERROR if math.isnan(err) else abs(err) / tol
+    for rec, real in (tg.frf or {}).items():
+        band = (real.coherence >= FRF_COHERENCE) & (real.w > 0)
+        sim = _frf(sims[rec])
+        diff = 20 * np.log10(np.abs(sim.G[band]) / np.abs(real.G[band]))
+        errors[f"frf {rec}"] = float(np.max(np.abs(diff))) / FRF_TOLERANCE_DB if diff.size else MISSING_MODE_ERROR
+    return errors
+
+
+def friction_cost(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> float:
+    """What ``fit_friction`` minimises: a norm close to the largest :func:`friction_errors` + penalties.
+
+    The 8-norm of the tolerance-scaled errors (≈ the worst one, so the fit balances
+    all checks instead of trading one far outside its tolerance for many well inside),
+    plus the penalties.
+    """
+    errors, penalty = friction_errors(lev, tg, seed)
+    return float(np.sum(np.array(list(errors.values())) ** _NORM) ** (1 / _NORM)) + penalty
+
+
+def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
+                 targets: FrictionTargets | None = None, step: float = 0.06,
+                 verbose: bool = False) -> Levitator:
+    """Fit dry + viscous friction and t_phys (``FRICTION_PARAMS``) by minimising :func:`friction_cost`.
+
+    Nelder-Mead on the log-parameters from ``base`` (initial simplex: each parameter
+    times e^``step``); ``maxfev`` evaluations of 8 simulated records each (≈ 1 s per
+    evaluation).  The objective is not smooth (identified modes jump), so this is a
+    local polish: the defaults came from chained longer runs (docs/simulator.md).
+    """
+    if any(getattr(base.params, k) <= 0 for k in FRICTION_PARAMS):
+        raise ValueError(f"fit_friction needs positive starting values of {FRICTION_PARAMS}")
+    tg = targets or friction_targets(root)
+    x0 = np.log([getattr(base.params, k) for k in FRICTION_PARAMS])
+
+    def model(x: np.ndarray) -> Levitator:
+        return base.with_params(**{k: float(v) for k, v in zip(FRICTION_PARAMS, np.exp(x))})
+
+    best: list = [np.inf, base]
+
+    def cost(x: np.ndarray) -> float:
+        lev = model(x)
+        c = friction_cost(lev, tg)
+        if c < best[0]:
+            best[0], best[1] = c, lev
+            if verbose:
+                print(f"  friction fit: cost {c:.4f}", flush=True)
+        return c
+
+    simplex = x0[None, :] + np.vstack([np.zeros(x0.size), step * np.eye(x0.size)])
+    optimize.minimize(cost, x0, method="Nelder-Mead",
+                      options=dict(maxfev=maxfev, initial_simplex=simplex, xatol=1e-4, fatol=1e-5))
+    return best[1]
+
+
+def frf_figure(cmp: Comparison, path: Path) -> None:
+    """The real records' FRF (±2σ, where coherent) against the simulator's BLA (±2σ) per input class."""
+    from matplotlib.figure import Figure
+
+    frfs = list((cmp.frf or {}).values())
+    fig = Figure(figsize=(3.2 * len(frfs), 4.2), layout="constrained")
+    axes = fig.subplots(2, len(frfs), sharex=True, squeeze=False, height_ratios=[3, 1])
+    for col, c in enumerate(frfs):
+        ax, axc = axes[0, col], axes[1, col]
+        for est, style, label in ((c.real, dict(color="k", lw=0.8), "real (Welch)"),
+                                  (c.sim, dict(color="tab:red", lw=0.8), "simulator BLA")):
+            w, g, band = est.w[1:], np.abs(est.G[1:]), 2 * est.std[1:] / np.sqrt(2)
+            ax.semilogx(w, 20 * np.log10(g), label=label, **style)
+            ax.fill_between(w, 20 * np.log10(np.maximum(g - band, g / 10)), 20 * np.log10(g + band),
+                            color=style["color"], alpha=0.2, lw=0)
+        w = c.real.w
+        ax.fill_between(w, -60, 20, where=c.band, color="tab:green", alpha=0.08, lw=0)
+        ax.set(title=f"{c.record}: max {c.max_db:.1f} dB", ylim=(-45, 15))
+        axc.semilogx(w[1:], c.real.coherence[1:], color="k", lw=0.7)
+        axc.semilogx(w[1:], c.sim.coherence[1:], color="tab:red", lw=0.7)
+        axc.axhline(FRF_COHERENCE, color="tab:green", lw=0.7, ls="--")
+        axc.set(xlim=(10, 1500), ylim=(0, 1), xlabel="ω [rad/s, 1 ms label]")
+    axes[0, 0].set_ylabel("|G| [dB re 1 cm/A]")
+    axes[1, 0].set_ylabel("coherence")
+    axes[0, 0].legend(fontsize=7, loc="lower left")
+    fig.savefig(path, dpi=80)
+
+
+def _save_figures(lev: Levitator, root: Path | None, out: Path, cmp: Comparison | None = None) -> None:
+    from matplotlib.figure import Figure
+
+    from maglev.lab.plots import plot_working_region
+    from maglev.lab.working_region import working_region
+
+    out.mkdir(parents=True, exist_ok=True)
+    stair = load_record("working_region", root)
+    sim = lev.simulate(stair.u, Ts=stair.Ts, seed=1)
+    fig = Figure(figsize=(10, 4), layout="constrained")
+    ax1, ax2 = fig.subplots(1, 2)
+    for d, label in ((stair, "real"), (sim, "sim")):
+        ax1.plot(d.t, d.y, lw=0.7, label=label)
+        plot_working_region(working_region(d.u, d.y, STAIR_LEVELS, STAIR_TAIL), ax2)
+    ax1.set_xlabel("t [s, as labelled]")
+    ax1.set_ylabel("y [cm]")
+    ax1.legend()
+    fig.savefig(out / "staircase.png", dpi=120)
+    if cmp is not None and cmp.frf:
+        frf_figure(cmp, out / "sim_vs_real_frf.png")
+    print(f"figures written to {out}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m maglev.sim.calibrate", description=__doc__.split("\n")[0])
+    parser.add_argument("--refdata", type=Path, default=None, help="reference data root (default: ../shared/refdata)")
+    parser.add_argument("--out", type=Path, default=None, help="directory for PNG figures")
+    parser.add_argument("--no-fit", action="store_true", help="compare the current defaults only")
+    parser.add_argument("--friction-evals", type=int, default=0,
+                        help="Nelder-Mead evaluations of the friction fit from the defaults (≈ 2 s each; "
+                        "default 0: with issue 15's checks scored a polish trades the rise time for them, "
+                        "docs/simulator.md)")
+    args = parser.parse_args(argv)
+    root = args.refdata or refdata_dir()
+    if root is None:
+        print("no reference data found: set MAGLEV_REFDATA or pass --refdata", file=sys.stderr)
+        return 2
+    lev = Levitator(zero_at_10=True)
+    if not args.no_fit:
+        stair = load_record("working_region", root)
+        lev = fit_static(stair, lev)
+        if args.friction_evals > 0:
+            lev = fit_friction(lev, root, maxfev=args.friction_evals)
+        lev = fit_noise(load_record("binary_signal_9", root), lev)  # after t_phys: the line's frequency uses it
+        fitted = {k: round(float(v), 6) for k, v in vars(lev.params).items()
+                  if not math.isclose(v, getattr(LevitatorParams(), k), rel_tol=1e-4)}
+        print("Fitted parameters (differences from the current defaults):")
+        print("  " + (", ".join(f"{k}={v!r}" for k, v in fitted.items()) or "none"))
+        print()
+    cmp = compare(lev, root)
+    print(cmp.table())
+    if args.out is not None:
+        _save_figures(lev, root, args.out, cmp)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

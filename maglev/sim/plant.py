@@ -1,0 +1,484 @@
+"""Nonlinear simulator of the KTH/ECP magnetic levitator and its exact linearisation.
+
+Why: the identification core needs records with a known truth.  This module
+simulates the lab's rig (two ring magnets on a glass rod above one drive coil, the
+lab text's §2 and preparation task 1) and returns :class:`~maglev.data.IOData` that
+look like the lab's files, and it gives the true linear model at any working point
+to compare identified models with.
+
+Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulator.md):
+
+* lower magnet at height z >= 0 (rests on its seat until lifted), upper magnet at
+  height h <= ``h_top`` (top stop), both of mass ``m``;
+* coil force on the lower magnet ``Fc = I / (a (z + b)^n)`` (repulsive, linear in
+  the current), and a weaker pull on the upper magnet ``Fa = kappa I / (a (h + b)^n)``;
+* magnet-magnet repulsion ``Fm = c / (h - z + d)^4`` (Gilbert far field with an offset);
+* gravity, viscous friction ``gamma v`` and dry friction of each bushing on the glass
+  rod: Coulomb level + a Stribeck (velocity-weakening) peak, tanh-regularised over a
+  creep speed ``v_creep`` (``(Fc + Fs exp(-(v/vs)^2)) tanh(v/v_creep)``), which makes
+  small motions heavily damped and large ones lightly damped (the rig's amplitude
+  dependence, notes §4.6);
+* the current regulator saturates at ``i_sat`` (≈ 4.06 A on the rig) and, as an
+  option, the lab's logging quirk "command >= 10 A is written as 0 A";
+* a pure input delay; a laser reading ``y = y_off + h`` plus sensor noise (white +
+  a narrow mains-ripple line) quantised to the ADC step; optional process (force) noise.
+
+Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
+6-7 ms of physical time (notes §5).  By default the simulator reproduces the
+records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
+of physics with ``time_scale = t_phys / 1 ms`` (5.852, fitted by ``maglev.sim.calibrate``
+together with the friction), so a 60 s-labelled record covers about 350 s of physics
+and the transients have the real records' length in samples.  With
+``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
+sample), and its transients are about 6 times longer in samples.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+
+import control as ct
+import numpy as np
+from scipy import optimize, signal
+
+from maglev.data import IOData
+
+__all__ = ["LevitatorParams", "Equilibrium", "LinearModel", "Levitator", "U_MIN", "U_MAX"]
+
+U_MIN, U_MAX = 0.0, 10.0  # the rig's allowed command range [A]
+LABEL_TS = 1e-3  # the sampling period the lab's records are labelled with [s]
+_CM = 100.0  # cm per m: accelerations in cm/s^2 are 100 F/m
+
+
+@dataclass(frozen=True)
+class LevitatorParams:
+    """Physical and sensor parameters (defaults: fitted to the KTH 2022 records by ``maglev.sim.calibrate``)."""
+
+    m: float = 0.12  # kg, mass of each magnet
+    g: float = 9.81  # m/s^2
+    a: float = 0.3563  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
+    b: float = 1.392  # cm, offset of the coil force law
+    n_coil: float = 1.275  # exponent of the coil force law
+    kappa: float = 0.1965  # coil pull on the upper magnet relative to the push on the lower one
+    c: float = 2.21e4  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
+    d: float = 4.2  # cm, offset of the repulsion law
+    gamma_lower: float = 2.629  # N s/m, viscous friction of the lower magnet
+    gamma_upper: float = 0.07442  # N s/m, viscous friction of the upper magnet
+    coulomb_lower: float = 0.006933  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
+    coulomb_upper: float = 0.05094  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
+    stiction_lower: float = 0.3606  # N, extra friction at low speed (Stribeck peak) on the lower magnet
+    stiction_upper: float = 0.08819  # N, extra friction at low speed (Stribeck peak) on the upper magnet
+    v_stribeck: float = 1.316  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
+    v_creep: float = 0.713  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
+    h_top: float = 16.0  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
+    i_sat: float = 3.899  # A, current-regulator saturation
+    delay: float = 0.0  # s (physical), pure input delay beyond the one-sample read-then-write lag
+    t_phys: float = 0.005852  # s of physics per logged sample labelled 1 ms
+    y_off: float = 0.4505  # cm, reading y = y_off + h
+    noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
+    noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
+    noise_line_hz: float = 116.81  # Hz, ripple frequency (aliased by the logging rate)
+    noise_line_radius: float = 0.9198  # pole radius of the AR(2) line (its sharpness)
+    quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
+    force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
+
+    def __post_init__(self) -> None:
+        positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys", "v_stribeck")
+        for name in positive:
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"LevitatorParams.{name} must be a positive number, got {value!r}")
+        nonneg = ("kappa", "gamma_lower", "gamma_upper", "coulomb_lower", "coulomb_upper",
+                  "stiction_lower", "stiction_upper", "v_creep", "delay",
+                  "noise_std", "noise_line_hz", "quant", "force_noise")
+        for name in nonneg:
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"LevitatorParams.{name} must be a number >= 0, got {value!r}")
+        if not 0.0 <= self.noise_line_fraction <= 1.0:
+            raise ValueError(
+                f"LevitatorParams.noise_line_fraction must be in [0, 1], got {self.noise_line_fraction!r}"
+            )
+        if not 0.0 <= self.noise_line_radius < 1.0:
+            raise ValueError(
+                f"LevitatorParams.noise_line_radius must be in [0, 1), got {self.noise_line_radius!r}"
+            )
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """Static state for a constant command ``u``: coil current, magnet heights, reading."""
+
+    u: float  # A, command
+    current: float  # A, coil current after the regulator
+    z: float  # cm, lower magnet
+    h: float  # cm, upper magnet
+    y: float  # cm, noise-free reading y_off + h
+    lower_seated: bool  # the lower magnet rests on its seat (z = 0)
+    upper_at_top: bool  # the upper magnet rests on the top stop
+
+
+@dataclass(frozen=True)
+class LinearModel:
+    """True linear model from command deviation [A] to reading deviation [cm] at ``equilibrium``.
+
+    ``sys_c`` is continuous without the pure delay, ``sys_d`` is its ZOH discretisation
+    at ``Ts`` with the delay of ``delay_samples`` samples appended as extra states.  Both
+    use the simulator's time base: in the default (as-labelled) mode one second of
+    ``sys_c`` is one labelled second, i.e. ``time_scale`` physical seconds.
+    """
+
+    equilibrium: Equilibrium
+    sys_c: ct.StateSpace
+    sys_d: ct.StateSpace
+    Ts: float
+    delay_samples: int
+    time_scale: float
+
+    @property
+    def dc_gain(self) -> float:
+        """Static gain dy/du in cm/A (zero where the regulator saturates)."""
+        return float(np.real(ct.dcgain(self.sys_c)))
+
+    def modes(self) -> list[tuple[float, float]]:
+        """(natural frequency [rad/s, model time base], damping ratio) of each pole of ``sys_c``."""
+        return [(abs(p), -p.real / abs(p) if abs(p) > 0 else 1.0) for p in ct.poles(self.sys_c)]
+
+
+class Levitator:
+    """The levitator rig: ``simulate`` a command record, find ``equilibrium``, ``linearize``.
+
+    ``physical_time=False`` (default) reproduces the lab's records as labelled: every
+    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (5.852 ms for Ts = 1 ms).
+    ``physical_time=True`` integrates exactly ``Ts`` of physics per sample.
+    ``zero_at_10=True`` reproduces the lab logger's quirk of writing 0 A for any
+    command >= 10 A (the 10 A level of the real staircase reads as 0 A).
+    """
+
+    def __init__(
+        self,
+        params: LevitatorParams | None = None,
+        *,
+        physical_time: bool = False,
+        zero_at_10: bool = False,
+    ) -> None:
+        self.params = params or LevitatorParams()
+        self.physical_time = bool(physical_time)
+        self.zero_at_10 = bool(zero_at_10)
+
+    def __repr__(self) -> str:
+        return (f"Levitator(physical_time={self.physical_time}, zero_at_10={self.zero_at_10}, "
+                f"params={self.params})")
+
+    def with_params(self, **changes: float) -> "Levitator":
+        """A copy with some parameters replaced (same time-base and quirk flags)."""
+        return Levitator(replace(self.params, **changes), physical_time=self.physical_time,
+                         zero_at_10=self.zero_at_10)
+
+    # ------------------------------------------------------------------ time base
+    def time_scale(self) -> float:
+        """Physical seconds per second of the simulator's time base (t_phys / 1 ms as labelled, 1 if physical)."""
+        return 1.0 if self.physical_time else self.params.t_phys / LABEL_TS
+
+    def delay_samples(self, Ts: float) -> int:
+        """Pure input delay in samples of period ``Ts`` (rounded)."""
+        return int(round(self.params.delay / (Ts * self.time_scale())))
+
+    # ------------------------------------------------------------------ input path
+    def current(self, u: float | np.ndarray) -> np.ndarray:
+        """Coil current [A] for command ``u``: optional >=10 A quirk, then regulator saturation."""
+        u = _checked_command(u, "u")
+        if self.zero_at_10:
+            u = np.where(u >= U_MAX, 0.0, u)
+        return np.clip(u, 0.0, self.params.i_sat)
+
+    # ------------------------------------------------------------------ statics
+    def _upper_height(self, current: float, z: float) -> float:
+        """Height h balancing the upper magnet above a lower magnet at z (ignoring the top stop)."""
+        p = self.params
+        w = p.m * p.g
+
+        def f(h: float) -> float:
+            return p.c / (h - z + p.d) ** 4 - p.kappa * current / (p.a * (h + p.b) ** p.n_coil) - w
+
+        return optimize.brentq(f, z, z + 1e3, xtol=1e-12)
+
+    def equilibrium(self, u: float) -> Equilibrium:
+        """Solve the static force balance directly for constant command ``u`` [A]."""
+        u_val = float(_checked_command(u, "u"))
+        p = self.params
+        current = float(self.current(u_val))
+        w = p.m * p.g
+
+        def coil(z: float) -> float:
+            return current / (p.a * (z + p.b) ** p.n_coil)
+
+        def repulsion(gap: float) -> float:
+            return p.c / (gap + p.d) ** 4
+
+        h0 = self._upper_height(current, 0.0)
+        if coil(0.0) <= repulsion(h0) + w:  # lower magnet stays seated
+            z, h, seated = 0.0, h0, True
+        else:
+            def lower(z_: float) -> float:
+                return coil(z_) - repulsion(self._upper_height(current, z_) - z_) - w
+
+            z_hi = 1.0
+            while lower(z_hi) > 0:
+                z_hi *= 2.0
+            z = optimize.brentq(lower, 0.0, z_hi, xtol=1e-12)
+            h, seated = self._upper_height(current, z), False
+        at_top = h >= p.h_top
+        if at_top:
+            h = p.h_top
+            if not seated:
+                z = optimize.brentq(lambda z_: coil(z_) - repulsion(p.h_top - z_) - w, 0.0, p.h_top,
+                                    xtol=1e-12)
+        return Equilibrium(u=u_val, current=current, z=z, h=h, y=p.y_off + h,
+                           lower_seated=seated, upper_at_top=at_top)
+
+    def static_curve(self, u: np.ndarray) -> np.ndarray:
+        """Noise-free steady reading [cm] for each constant command in ``u``."""
+        return np.array([self.equilibrium(float(v)).y for v in np.asarray(u, float).reshape(-1)])
+
+    # ------------------------------------------------------------------ linearisation
+    def linearize(self, u0: float, Ts: float = LABEL_TS, *, dry_friction: bool = True) -> LinearModel:
+        """Equilibrium at command ``u0`` and the true linear model there (continuous and ZOH at ``Ts``).
+
+        States are (z, h, dz/dt, dh/dt) in cm and cm/s, or (h, dh/dt) while the lower
+        magnet is seated; the output is the reading deviation in cm and the input the
+        command deviation in A (zero gain where the regulator saturates).
+
+        Dry friction: with ``v_creep > 0`` the friction law is smooth, and its slope at
+        rest, ``(coulomb + stiction) / v_creep``, is a (large) viscous damping that the
+        exact Jacobian includes (``dry_friction=True``): the model of *infinitesimal*
+        motion.  Records with real excitation move far beyond ``v_creep`` and see much
+        less damping; ``dry_friction=False`` gives the viscous-only model instead.
+        Set-valued friction (``v_creep = 0``) has no derivative at rest and is left out.
+        """
+        Ts = _checked_ts(Ts)
+        eq = self.equilibrium(u0)
+        p = self.params
+        k = _CM / p.m
+        cur, z, h = eq.current, eq.z, eq.h
+        gap = h - z
+        dfm = -4.0 * p.c / (gap + p.d) ** 5  # dFm/dgap
+        dfa_dh = -p.n_coil * p.kappa * cur / (p.a * (h + p.b) ** (p.n_coil + 1))
+        dfa_di = p.kappa / (p.a * (h + p.b) ** p.n_coil)
+        dfc_dz = -p.n_coil * cur / (p.a * (z + p.b) ** (p.n_coil + 1))
+        dfc_di = 1.0 / (p.a * (z + p.b) ** p.n_coil)
+        gain_u = 0.0 if (self.zero_at_10 and eq.u >= U_MAX) or not 0.0 < eq.u < p.i_sat else 1.0
+        gl, gu = p.gamma_lower / p.m, p.gamma_upper / p.m
+        if dry_friction and p.v_creep > 0:
+            gl += _CM * (p.coulomb_lower + p.stiction_lower) / (p.v_creep * p.m)
+            gu += _CM * (p.coulomb_upper + p.stiction_upper) / (p.v_creep * p.m)
+        if eq.upper_at_top:
+            # the upper magnet is pressed against its stop: the reading cannot move
+            A = np.array([[-1.0]])
+            B = np.zeros((1, 1))
+            C = np.zeros((1, 1))
+        elif eq.lower_seated:
+            A = np.array([[0.0, 1.0], [k * (-dfa_dh + dfm), -gu]])
+            B = np.array([[0.0], [-k * dfa_di * gain_u]])
+            C = np.array([[1.0, 0.0]])
+        else:
+            A = np.array([
+                [0.0, 0.0, 1.0, 0.0],
+                [0.0, 0.0, 0.0, 1.0],
+                [k * (dfc_dz + dfm), -k * dfm, -gl, 0.0],
+                [-k * dfm, k * (-dfa_dh + dfm), 0.0, -gu],
+            ])
+            B = np.array([[0.0], [0.0], [k * dfc_di * gain_u], [-k * dfa_di * gain_u]])
+            C = np.array([[0.0, 1.0, 0.0, 0.0]])
+        scale = self.time_scale()
+        sys_c = ct.ss(A * scale, B * scale, C, np.zeros((1, 1)))
+        nd = self.delay_samples(Ts)
+        sys_d = ct.sample_system(sys_c, Ts, method="zoh")
+        if nd > 0:
+            delay = ct.ss(np.eye(nd, k=-1), np.eye(nd, 1), np.eye(1, nd, nd - 1), np.zeros((1, 1)), Ts)
+            sys_d = ct.series(delay, sys_d)
+        return LinearModel(equilibrium=eq, sys_c=sys_c, sys_d=sys_d, Ts=Ts, delay_samples=nd,
+                           time_scale=scale)
+
+    # ------------------------------------------------------------------ simulation
+    def simulate(
+        self,
+        u: np.ndarray,
+        Ts: float = LABEL_TS,
+        seed: int | None = 0,
+        *,
+        noise: bool = True,
+        start: float = 0.0,
+        substeps: int | None = None,
+        name: str | None = None,
+    ) -> IOData:
+        """Apply the command ``u`` [A] (held constant over each sample) and log the reading.
+
+        The record starts from rest at the equilibrium of command ``start`` (0 A: both
+        magnets down, as every lab record does).  ``noise=False`` gives the exact,
+        noise-free, unquantised reading.  ``substeps`` integration steps per sample
+        (default: enough for steps of <= 1.7 ms of physics).  The same ``seed`` gives
+        the same record.  ``meta`` holds the true heights ``z``, ``h`` and the current.
+        """
+        Ts = _checked_ts(Ts)
+        u = _checked_command(np.asarray(u, dtype=float).reshape(-1), "u")
+        if u.size < 10:
+            raise ValueError(f"u must have at least 10 samples, got {u.size}")
+        p = self.params
+        dt = Ts * self.time_scale()  # physical seconds per sample
+        if substeps is None:
+            substeps = max(1, math.ceil(dt / 1.7e-3))
+        elif not isinstance(substeps, int) or substeps < 1:
+            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+        eq0 = self.equilibrium(start)
+        nd = self.delay_samples(Ts)
+        cur = np.concatenate([np.full(nd, eq0.current), self.current(u)])[: u.size]
+        rng = np.random.default_rng(seed)
+        if noise and p.force_noise > 0:
+            force = rng.standard_normal(u.size) * p.force_noise
+        else:
+            force = np.zeros(u.size)
+        z, h = _integrate(p, cur, force, dt, substeps, eq0.z, eq0.h)
+        y = p.y_off + h
+        if noise:
+            y = y + self._sensor_noise(u.size, dt, rng)
+            if p.quant > 0:
+                y = np.round(y / p.quant) * p.quant
+        return IOData(u=u, y=y, Ts=Ts, name=name,
+                      meta={"z": z, "h": h, "current": cur, "seed": seed,
+                            "physical_time": self.physical_time, "params": asdict(p)})
+
+    def _sensor_noise(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """White noise plus an AR(2) line at the mains ripple aliased by the sample period ``dt``."""
+        p = self.params
+        f_line = p.noise_line_hz * dt % 1.0
+        f_line = min(f_line, 1.0 - f_line)  # aliased frequency, cycles/sample in [0, 0.5]
+        r, th = p.noise_line_radius, 2 * math.pi * f_line
+        a1, a2 = -2 * r * math.cos(th), r * r
+        var_ar = (1 + a2) / ((1 - a2) * ((1 + a2) ** 2 - a1 ** 2))
+        burn = 200
+        line = signal.lfilter([1.0], [1.0, a1, a2], rng.standard_normal(n + burn))[burn:]
+        line /= math.sqrt(var_ar)
+        white = rng.standard_normal(n)
+        frac = p.noise_line_fraction
+        return p.noise_std * (math.sqrt(frac) * line + math.sqrt(1 - frac) * white)
+
+
+def _friction(v: float, fc: float, fs: float, vs: float, vc: float, gamma: float) -> tuple[float, float]:
+    """Friction force [N] opposing velocity ``v`` [cm/s] and its slope dF/dv [N s/cm].
+
+    ``F(v) = (fc + fs exp(-(v/vs)^2)) tanh(v/vc) + gamma v / 100`` (gamma in N s/m):
+    Coulomb level ``fc``, a Stribeck peak ``fs`` above it at low speed, a tanh sign of
+    width ``vc`` (the creep/pre-sliding regime: at |v| << vc the dry friction acts like
+    a viscous damping (fc + fs) / vc) and viscous friction.  Reference form of the law
+    that the integrator inlines (and the tests check).
+    """
+    e = math.exp(-(v / vs) ** 2)
+    th = math.tanh(v / vc)
+    level = fc + fs * e
+    force = level * th + gamma * v / _CM
+    slope = level * (1.0 - th * th) / vc - 2.0 * fs * e * v / (vs * vs) * th + gamma / _CM
+    return force, slope
+
+
+def _velocity_step(hk: float, gamma: float, fc: float, fs: float, ivs2: float, ivc: float,
+                   smooth: bool):
+    """The velocity update of one magnet over one substep, for its friction parameters.
+
+    ``hk`` is the substep times the force-to-acceleration factor; the returned function
+    maps (velocity, external force) to the new velocity (see :func:`_integrate`).
+    """
+    exp, tanh = math.exp, math.tanh
+    damp = 1.0 + hk * gamma
+    if fc + fs <= 0.0:  # viscous only: implicit Euler
+        return lambda v, a: (v + hk * a) / damp
+    if smooth:
+        def step(v: float, a: float) -> float:
+            e = exp(-v * v * ivs2) if fs else 0.0
+            th = tanh(v * ivc)
+            level = fc + fs * e
+            slope = level * (1.0 - th * th) * ivc + gamma - 2.0 * fs * e * v * ivs2 * th
+            return v + hk * (a - level * th - gamma * v) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
+        return step
+
+    def stick_slip(v: float, a: float) -> float:
+        band = hk * (fc + fs * exp(-v * v * ivs2)) / damp
+        v = (v + hk * a) / damp
+        return v - band if v > band else (v + band if v < -band else 0.0)
+    return stick_slip
+
+
+def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float, substeps: int,
+               z0: float, h0: float) -> tuple[np.ndarray, np.ndarray]:
+    """Semi-implicit Euler on plain floats: (linearly) implicit friction, explicit forces.
+
+    Velocities are updated first with the forces at the current positions and the
+    friction treated implicitly, then positions with the new velocities; the seat
+    (z >= 0) and the top stop (h <= h_top) are inelastic.  With ``v_creep > 0`` the
+    dry friction (Coulomb + Stribeck, tanh-regularised) is linearised about the old
+    velocity, ``v' = v + hs (a_ext - k F(v)) / (1 + hs k max(F'(v), 0))`` - one Newton
+    step of backward Euler, stable however steep the tanh is (the velocity-weakening
+    part, whose slope is negative, stays explicit).  With ``v_creep = 0`` the dry
+    friction is set-valued (exact stick-slip): a magnet sticks when the trial velocity
+    lies within the band the friction level at the old speed can cancel in one step.
+    Returns the heights at the start of every sample (sample-then-actuate, as the lab's
+    logging loop and the ZOH model assume).
+    """
+    hs = dt / substeps
+    k = _CM / p.m
+    w = p.m * p.g
+    ia = 1.0 / p.a
+    n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
+    gl, gu = p.gamma_lower / _CM, p.gamma_upper / _CM  # N per cm/s
+    fcl, fcu, fsl, fsu = p.coulomb_lower, p.coulomb_upper, p.stiction_lower, p.stiction_upper
+    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
+    vc = p.v_creep
+    smooth = vc > 0.0
+    ivc = 1.0 / vc if smooth else 0.0
+    hk = hs * k
+    top = p.h_top
+    step_l = _velocity_step(hk, gl, fcl, fsl, ivs2, ivc, smooth)
+    step_u = _velocity_step(hk, gu, fcu, fsu, ivs2, ivc, smooth)
+    z, h, vz, vh = z0, h0, 0.0, 0.0
+    zs = [0.0] * len(cur)
+    hs_out = [0.0] * len(cur)
+    for i, (i_c, f_n) in enumerate(zip(cur.tolist(), force.tolist())):
+        zs[i] = z  # the reading is taken at the start of the sample, then the new current acts
+        hs_out[i] = h
+        ci = i_c * ia
+        for _ in range(substeps):
+            fm = c / (h - z + d) ** 4
+            az = ci / (z + b) ** n - fm - w  # N, external force on the lower magnet
+            ah = fm - kap * ci / (h + b) ** n - w + f_n  # N, on the upper magnet
+            vz = step_l(vz, az)
+            vh = step_u(vh, ah)
+            z += hs * vz
+            h += hs * vh
+            if z < 0.0:
+                z, vz = 0.0, 0.0
+            if h > top:
+                h, vh = top, 0.0
+    return np.array(zs), np.array(hs_out)
+
+
+def _checked_command(u: float | np.ndarray, name: str) -> np.ndarray:
+    """The command as a float array, refusing values outside the rig's 0-10 A range."""
+    arr = np.asarray(u, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite currents in A, got NaN/inf")
+    bad = (arr < U_MIN) | (arr > U_MAX)
+    if bad.any():
+        first = arr[bad].reshape(-1)[0]
+        raise ValueError(
+            f"{name} must stay within the rig's current range [{U_MIN:g}, {U_MAX:g}] A, "
+            f"got {first!r} ({int(bad.sum())} value(s) outside)"
+        )
+    return arr
+
+
+def _checked_ts(Ts: float) -> float:
+    Ts_f = float(Ts)
+    if not (math.isfinite(Ts_f) and Ts_f > 0):
+        raise ValueError(f"Ts must be a positive number of seconds, got {Ts!r}")
+    return Ts_f

@@ -1,0 +1,161 @@
+"""Tests of maglev.sim.bla: the best linear approximation and the one-record frequency response.
+
+Known truths: on a linear plant the BLA is its transfer function (coverage of the
+standard error); on the levitator it depends on the input class; the identity
+E|y - G u|² = ‖G_BLA - G‖²_Φu + var(y_s) holds for any linear G; the cache returns
+what it stored.  Short classes and few realisations keep the tests fast.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from maglev.sim import bla as bla_mod
+from maglev.sim.bla import BLA, Preprocess, bla, frequency_response, relative_distance, weighted_distance
+from maglev.data import IOData
+from maglev.estimation import arx, oe
+from maglev.sim.labdata import ExperimentSpec, input_signal
+from maglev.model import PolyModel
+from maglev.sim.plant import Levitator
+
+BINARY = ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=12.0)
+NARROW = ExperimentSpec("uniform", 1.75, 2.5, duration_s=12.0)
+DEC2 = Preprocess(trim=2000, detrend=True, decimate=2)
+# a lightly damped second-order plant with a delay, on the 1 ms label: pole pair at 0.1 rad/sample
+TRUE = PolyModel(A=[1.0], B=[0.0, 0.0, 0.02, 0.015], C=[1.0], D=[1.0],
+                 F=np.real(np.poly([0.97 * np.exp(0.1j), 0.97 * np.exp(-0.1j)])), nk=2, Ts=1e-3, structure="oe")
+NOISE_STD = 0.3  # output noise of the linear plant: the standard error is then ≈ 5-10 % of |G|
+
+
+def _linear_plant(u: np.ndarray, seed: int) -> np.ndarray:
+    return TRUE.simulate(u) + NOISE_STD * np.random.default_rng(seed).standard_normal(u.size)
+
+
+def _coverage(G: np.ndarray, G0: np.ndarray, std: np.ndarray, k: float) -> float:
+    return float(np.mean(np.abs(G - G0) <= k * std))
+
+
+def test_bla_of_a_linear_plant_is_its_transfer_function_within_the_standard_error():
+    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=8)
+    band = est.w > 0
+    G0 = TRUE.freqresp(est.w[band])
+    # with SE² from the spread of M = 8 realisations, |Ĝ - G|²/SE² ~ F(2, 14):
+    # P(<= 1) = 0.61 and P(<= 4) = 0.96 (over ~1000 frequencies, correlated in pairs)
+    assert 0.50 <= _coverage(est.G[band], G0, est.std[band], 1.0) <= 0.72
+    assert 0.92 <= _coverage(est.G[band], G0, est.std[band], 2.0) <= 0.99
+    low = band & (est.w < 300)  # rad/s: up to past the resonance, where |G| is large
+    assert np.median(est.std[low] / np.abs(TRUE.freqresp(est.w[low]))) < 0.05  # the bounds are not vacuous
+    # the model itself is at distance ≈ SE; a 10 % gain error is far beyond it
+    assert weighted_distance(TRUE.freqresp(est.w), est) < 0.02
+    assert weighted_distance(1.1 * TRUE.freqresp(est.w), est) == pytest.approx(0.1, abs=0.01)
+    assert relative_distance(1.1 * TRUE.freqresp(est.w), est) == pytest.approx(0.1, abs=0.02)
+
+
+def test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies():
+    """A slow pole-zero pair near ω = 0 (as OE [4 4 2] fits on the narrow uniform class) on a flat input
+    spectrum: given the model's response as a function the distance is the integral's; sampled at the
+    Welch frequencies it weighs the pair's dip at ω = 0 as if it filled a whole bin."""
+    from maglev.sim.bla import FrequencyResponse
+
+    w = np.linspace(0, np.pi / 1e-3, 1001)  # the Welch grid of 2 s segments at 1 ms: 0.5 Hz apart
+    suu = np.ones(w.size)
+    suu[[0, -1]] = 0.5  # a one-sided Welch density: end bins not doubled
+    ref = FrequencyResponse(w=w, G=TRUE.freqresp(w), std=np.zeros(w.size), coherence=np.ones(w.size), Suu=suu,
+                            Syy=suu, Ts=1e-3, averages=1)
+    dense = np.linspace(0, np.pi / 1e-3, 2_000_001)
+    for zero, pole, grid_error in ((0.99996, 0.9994, 0.3), (0.99, 0.95, 0.0)):
+        model = PolyModel(A=[1.0], B=np.convolve(TRUE.B, [1.0, -zero]), C=[1.0], D=[1.0],
+                          F=np.convolve(TRUE.F, [1.0, -pole]), nk=2, Ts=1e-3, structure="oe")
+        g0, g = TRUE.freqresp(dense), model.freqresp(dense)
+        exact = np.sqrt(np.trapezoid(np.abs(g - g0) ** 2, dense) / np.trapezoid(np.abs(g0) ** 2, dense))
+        assert weighted_distance(model.freqresp, ref) == pytest.approx(exact, rel=0.01)
+        assert relative_distance(model.freqresp, ref) == pytest.approx(exact, rel=0.01)  # flat Φu: the same
+        on_grid = weighted_distance(model.freqresp(w), ref)
+        assert on_grid > (1 + grid_error) * exact if grid_error else on_grid == pytest.approx(exact, rel=0.01)
+
+
+def test_one_record_frequency_response_error_matches_its_coherence_based_standard_error():
+    u = input_signal(replace(BINARY, seed=3, duration_s=40.0))
+    frf = frequency_response(IOData(u=u, y=_linear_plant(u, 4), Ts=1e-3).trim(2000).detrend())
+    band = frf.w > 0
+    cover2 = _coverage(frf.G[band], TRUE.freqresp(frf.w[band]), frf.std[band], 2.0)
+    assert 0.92 <= cover2 <= 1.0  # nominal 1 - e^-4 = 0.98 for a complex Gaussian error
+    assert frf.averages == 1 + (38000 - 2000) // 1000
+
+
+@pytest.fixture(scope="module")
+def binary_bla(tmp_path_factory) -> BLA:
+    """The default levitator's BLA for binary α .25 1.5-4 A, 12 s, trimmed, detrended, decimated by 2."""
+    return bla(BINARY, Levitator(zero_at_10=True), preprocess=DEC2, realisations=6,
+               cache=tmp_path_factory.mktemp("bla"))
+
+
+def test_levitator_bla_depends_on_the_input_class(binary_bla):
+    big = binary_bla
+    small = bla(NARROW, Levitator(zero_at_10=True), preprocess=DEC2, realisations=3, cache=False)
+    assert big.Ts == small.Ts == 2e-3
+    band = (big.w > 30) & (big.w < 300)  # rad/s: around both resonances
+    z = np.abs(big.G - small.G)[band] / np.hypot(big.std, small.std)[band]
+    # dry friction: the large binary hops see a resonant gain, small white noise a heavily damped one
+    assert np.median(z) > 10
+    assert np.abs(big.G[band]).max() > 3 * np.abs(small.G[band]).max()
+    assert 0 < small.fit_ceiling < 100 and 0 < big.fit_ceiling < 100
+
+
+def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_distortion(binary_bla):
+    lev, est = Levitator(zero_at_10=True), binary_bla
+    records = []
+    for seed in range(4):  # held out: seeds the estimate did not use
+        u = input_signal(replace(BINARY, seed=seed))
+        records.append(DEC2.apply(IOData(u=u, y=lev.simulate(u, seed=seed, noise=False).y, Ts=BINARY.Ts)))
+    half = est.w.size - 1
+    fits = [100 * (1 - np.linalg.norm(d.y[half:-half] - est.simulate(d.u)[half:-half])
+                   / np.linalg.norm(d.y[half:-half])) for d in records[1:]]
+    assert np.mean(fits) == pytest.approx(est.fit_ceiling, abs=4.0)
+    predicted = []
+    for model in (oe(records[0], 2, 2, 2), arx(records[0], 2, 2, 2)):
+        d = weighted_distance(model.freqresp(est.w), est)
+        pred = d ** 2 * est.linear_variance + est.distortion_variance
+        mse = np.array([np.mean((r.y[300:] - model.simulate(r.u)[300:]) ** 2) for r in records[1:]])
+        # tolerance: 3 standard errors of the mean over the 3 records (each record's mean square
+        # scatters by ≈ 7 %) plus 5 % for the BLA's own estimation error with M = 6 (measured 2-4 %)
+        tol = 3 * mse.std(ddof=1) / np.sqrt(mse.size) + 0.05 * pred
+        assert abs(mse.mean() - pred) <= tol, (model.label, mse, pred)
+        predicted.append(pred)
+    assert predicted[1] > 1.5 * predicted[0]  # the identity separates a good model from a poor one
+
+
+def test_cache_round_trip_and_key(tmp_path, monkeypatch):
+    lev = Levitator(zero_at_10=True)
+    spec = replace(NARROW, duration_s=6.0)
+    first = bla(spec, lev, preprocess=DEC2, realisations=2, cache=tmp_path)
+    assert len(list(tmp_path.glob("*.npz"))) == 1
+    bla_mod._MEMORY.clear()
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("estimated again instead of read from the cache")
+
+    monkeypatch.setattr(bla_mod, "_estimate", no_simulation)
+    again = bla(replace(spec, seed=99), lev, preprocess=DEC2, realisations=2, cache=tmp_path)  # seed: not a key
+    assert isinstance(again, BLA) and again.spec.seed == 99
+    for name in ("w", "G", "std", "coherence", "Suu", "Syy"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(first, name))
+    assert (again.fit_ceiling, again.preprocess, again.Ts) == (first.fit_ceiling, first.preprocess, first.Ts)
+    key = bla_mod.cache_key(spec, lev, DEC2, 2, bla_mod.SEGMENT_S)
+    assert key != bla_mod.cache_key(spec, lev.with_params(coulomb_upper=0.04), DEC2, 2, bla_mod.SEGMENT_S)
+    assert key != bla_mod.cache_key(replace(spec, alpha=None, kind="uniform", low=1.5), lev, DEC2, 2,
+                                    bla_mod.SEGMENT_S)
+    assert key != bla_mod.cache_key(spec, lev, replace(DEC2, decimate=1), 2, bla_mod.SEGMENT_S)
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match="stationary random input class"):
+        bla(ExperimentSpec("step", 2.5, 3.0), _linear_plant)
+    est = bla(replace(BINARY, duration_s=6.0), _linear_plant, preprocess=Preprocess(), realisations=2)
+    with pytest.raises(ValueError, match="freqresp"):
+        weighted_distance(np.ones(3), est)
+    with pytest.raises(ValueError, match="realisations must be >= 2"):
+        bla(BINARY, _linear_plant, realisations=1)
+    with pytest.raises(ValueError, match="Preprocess.decimate"):
+        Preprocess(decimate=0)

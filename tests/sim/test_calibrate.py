@@ -1,0 +1,85 @@
+"""Tests of maglev.sim.calibrate (the fits) and maglev.refdata (where the real records are)."""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from maglev import refdata
+from maglev.sim import calibrate, sim_vs_real
+from maglev.sim.plant import Levitator
+from maglev.sim.sim_vs_real import stair_averages
+
+REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
+needs_real = pytest.mark.skipif(not (REAL / refdata.KTH_2022).is_dir(),
+                                reason=f"real lab records not found under {REAL} "
+                                "(set MAGLEV_REFDATA to the shared refdata folder)")
+
+
+def test_refdata_dir_honours_env(monkeypatch, tmp_path):
+    monkeypatch.setenv("MAGLEV_REFDATA", str(tmp_path))
+    assert refdata.refdata_dir() == tmp_path
+    monkeypatch.setenv("MAGLEV_REFDATA", str(tmp_path / "missing"))
+    assert refdata.refdata_dir() is None
+    with pytest.raises(ValueError, match="record must be one of"):
+        refdata.load_record("no_such_record", tmp_path)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_static_fit_recovers_a_curve_close_to_the_real_one():
+    stair = refdata.load_record("working_region", REAL)
+    start = Levitator(zero_at_10=True).with_params(a=0.5, b=2.0, n_coil=1.5, kappa=0.3, y_off=0.3, i_sat=4.0)
+    fitted = calibrate.fit_static(stair, start)
+    u_bar, y_bar = stair_averages(stair)
+    assert np.sqrt(np.mean((fitted.static_curve(u_bar) - y_bar) ** 2)) < 0.01
+
+
+# ---------------------------------------------------------------------- dry friction (issue #3)
+@needs_real
+@pytest.mark.realdata
+def test_friction_defaults_meet_every_scored_check_and_beat_the_viscous_only_calibration():
+    targets = calibrate.friction_targets(REAL)
+    fitted = Levitator(zero_at_10=True)
+    errors, penalty = calibrate.friction_errors(fitted, targets)
+    legacy = {k: v for k, v in errors.items() if k.endswith(calibrate.LEGACY_CHECKS) and not k.startswith("armax")}
+    # ωn and ζ of five identified modes and the rise time, each within its tolerance
+    assert len(legacy) == 11 and max(legacy.values()) <= 1.0, legacy
+    assert penalty == 0.0
+    # issue 15's checks are scored too (7 stds, the ratio, 4 ARMAX numbers, 2 frequency responses)
+    assert len(errors) == 11 + 14
+    viscous = fitted.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0,
+                                 gamma_lower=10.79, gamma_upper=1.009, t_phys=6.575e-3, noise_line_hz=103.96)
+    errors_visc, _ = calibrate.friction_errors(viscous, targets)
+    assert max(errors_visc[k] for k in legacy) > 1.0  # the viscous-only plant fails the checks
+    assert calibrate.friction_cost(fitted, targets) < calibrate.friction_cost(viscous, targets)
+    # one evaluation of the fit itself runs and returns a plant (maxfev=1: the start)
+    out = calibrate.fit_friction(fitted, REAL, maxfev=1, targets=targets)
+    for name in calibrate.FRICTION_PARAMS:
+        assert getattr(out.params, name) == pytest.approx(getattr(fitted.params, name), rel=1e-12)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_friction_errors_are_the_printed_comparison_scaled_by_its_tolerances():
+    # the fit scores exactly what `python -m maglev.sim.calibrate` prints and the done-when checks
+    lev = Levitator(zero_at_10=True).with_params(coulomb_upper=0.04)  # not the defaults
+    errors, _ = calibrate.friction_errors(lev, calibrate.friction_targets(REAL))
+    cmp = sim_vs_real.compare(lev, REAL, records=("binary_signal_3",), fourth_order_records=(), frf_records=())
+    (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
+    tol = sim_vs_real.MODE_TOLERANCE
+    assert errors["binary_signal_3 wn"] == pytest.approx(abs(wn_s / wn_r - 1) / tol)
+    assert errors["binary_signal_3 zeta"] == pytest.approx(abs(z_s / z_r - 1) / tol)
+    assert errors["rise time"] == pytest.approx(abs(cmp.rise_sim / cmp.rise_real - 1) / sim_vs_real.RISE_TOLERANCE)
+    real, sim = cmp.std_ratio
+    assert errors["std ratio"] == pytest.approx(abs(sim / real - 1) / sim_vs_real.RATIO_TOLERANCE)
+    std_r, std_s = cmp.stds["white_noise_4"]
+    assert errors["std white_noise_4"] == pytest.approx(abs(np.log(std_s / std_r)) / np.log(sim_vs_real.STD_TOLERANCE))
+    picked = [sim_vs_real.two_modes(m) for m in cmp.armax]
+    for key, err in sim_vs_real.armax_errors(picked[1], picked[0]).items():
+        if not np.isnan(err):
+            tol = sim_vs_real.ARMAX_WN_TOLERANCE if key.endswith("wn") else sim_vs_real.ARMAX_ZETA_TOLERANCE
+            assert errors[f"armax {key}"] == pytest.approx(abs(err) / tol)
+        else:
+            assert errors[f"armax {key}"] == calibrate.MISSING_MODE_ERROR

@@ -1,0 +1,198 @@
+"""Tests of maglev.sim.plant: statics against the force balance, stops, linearisation, noise, speed."""
+
+import re
+
+import control as ct
+import numpy as np
+import pytest
+from scipy import signal
+
+from maglev.estimation import arx
+from maglev.sim.plant import Levitator, LevitatorParams, _friction
+from maglev.lab.signals import random_binary
+
+
+def _forces(p: LevitatorParams, current: float, z: float, h: float) -> tuple[float, float]:
+    """Net static force on the lower and upper magnet, written out from the force laws."""
+    fm = p.c / (h - z + p.d) ** 4
+    lower = current / (p.a * (z + p.b) ** p.n_coil) - fm - p.m * p.g
+    upper = fm - p.kappa * current / (p.a * (h + p.b) ** p.n_coil) - p.m * p.g
+    return lower, upper
+
+
+@pytest.mark.parametrize("u0", [0.0, 1.0, 2.0, 2.75, 3.5])
+def test_equilibrium_balances_forces_and_is_where_the_simulation_settles(u0):
+    lev = Levitator()
+    eq = lev.equilibrium(u0)
+    lower, upper = _forces(lev.params, eq.current, eq.z, eq.h)
+    assert abs(upper) < 1e-9
+    if eq.lower_seated:
+        assert eq.z == 0.0 and lower <= 0.0  # the seat carries the rest
+    else:
+        assert abs(lower) < 1e-9
+    data = lev.simulate(np.full(3000, u0), noise=False)
+    assert data.meta["h"][-1] == pytest.approx(eq.h, abs=1e-6)
+    assert data.meta["z"][-1] == pytest.approx(eq.z, abs=1e-6)
+    assert data.y[-1] == pytest.approx(eq.y, abs=1e-6)
+
+
+def test_dead_zone_and_saturation_of_the_static_curve():
+    lev = Levitator()
+    y = lev.static_curve(np.array([0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 9.5]))
+    assert np.ptp(y[:3]) < 0.1  # dead zone: lower magnet seated
+    assert y[4] - y[3] > 0.2  # sensitive once levitated
+    assert y[5] == pytest.approx(y[6], abs=1e-12)  # regulator saturation
+    assert lev.equilibrium(0.5).lower_seated and not lev.equilibrium(2.0).lower_seated
+
+
+def test_seat_and_top_stop_hold():
+    lev = Levitator()
+    low = lev.simulate(random_binary(3000, 0.1, 0.0, 1.0, seed=1), noise=False)
+    assert np.all(low.meta["z"] == 0.0)  # below lift-off the lower magnet never leaves its seat
+    wild = lev.simulate(random_binary(5000, 0.02, 0.0, 4.0, seed=2), noise=False)
+    assert wild.meta["z"].min() == 0.0 and wild.meta["z"].max() > 1.0
+    capped = lev.with_params(h_top=8.6)
+    data = capped.simulate(np.full(2000, 3.5), noise=False)
+    assert data.meta["h"].max() <= 8.6
+    assert data.meta["h"][-1] == 8.6 and capped.equilibrium(3.5).upper_at_top
+
+
+def test_logging_quirk_zero_at_10():
+    quirky = Levitator(zero_at_10=True)
+    assert quirky.equilibrium(10.0).y == pytest.approx(quirky.equilibrium(0.0).y)
+    assert Levitator().equilibrium(10.0).y == pytest.approx(Levitator().equilibrium(5.0).y)
+
+
+def _dominant(poles, Ts):
+    """(ωn, ζ) of the slowest complex pair, else of the slowest real pole (ζ = 1)."""
+    s = np.log(np.asarray(poles, dtype=complex)) / Ts
+    s = s[np.isfinite(s)]
+    cplx = s[s.imag > 1e-9]
+    pick = cplx if cplx.size else s
+    p = pick[np.argmin(np.abs(pick))]
+    return abs(p), -p.real / abs(p)
+
+
+@pytest.mark.parametrize("viscous_only", [False, True])
+def test_linearisation_matches_small_signal_identification(viscous_only):
+    # with dry friction the exact Jacobian includes the friction's slope at rest (overdamped
+    # small-signal modes); without it (dry friction removed) the modes are a light complex pair
+    lev = Levitator()
+    if viscous_only:
+        lev = lev.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0)
+        assert np.iscomplex(ct.poles(lev.linearize(2.75).sys_c)).any()
+    lin = lev.linearize(2.75)
+    u = 2.75 + 0.01 * (random_binary(8000, 0.5, -1.0, 1.0, seed=4))
+    data = lev.simulate(u, noise=False, start=2.75, substeps=16)
+    data = data.trim(500).detrend()
+    nd = lin.delay_samples
+    model = arx(data, 4, 4, nd + 1)  # ZOH: one sample of lag plus the pure delay
+    wn_id, z_id = _dominant(model.poles(), data.Ts)
+    wn_true, z_true = _dominant(ct.poles(lin.sys_d), lin.Ts)
+    assert wn_id == pytest.approx(wn_true, rel=0.03)
+    assert z_id == pytest.approx(z_true, rel=0.05)
+    # the continuous model's poles map onto the discrete ones
+    pc = np.sort_complex(np.exp(ct.poles(lin.sys_c) * lin.Ts))
+    pd = np.sort_complex(ct.poles(lin.sys_d)[np.abs(ct.poles(lin.sys_d)) > 1e-9])
+    assert np.allclose(pc, pd, atol=1e-9)
+
+
+def test_friction_law_levels_and_slopes():
+    fc, fs, vs, vc, gamma = 0.05, 0.03, 2.0, 0.4, 1.5
+    force0, slope0 = _friction(0.0, fc, fs, vs, vc, gamma)
+    assert force0 == 0.0
+    assert slope0 == pytest.approx((fc + fs) / vc + gamma / 100)  # creep regime: heavy damping at rest
+    fast, _ = _friction(50.0, fc, fs, vs, vc, gamma)
+    assert fast == pytest.approx(fc + gamma * 50.0 / 100, rel=1e-9)  # Stribeck peak gone: Coulomb + viscous
+    peak = max(_friction(v, fc, fs, vs, vc, gamma)[0] - gamma * v / 100 for v in np.linspace(0.01, 10, 500))
+    assert fc < peak < fc + fs  # velocity weakening: the dry part peaks above the Coulomb level
+    for v in (-3.0, 0.3, 1.1, 4.0):
+        f, s = _friction(v, fc, fs, vs, vc, gamma)
+        assert _friction(-v, fc, fs, vs, vc, gamma)[0] == pytest.approx(-f)
+        num = (_friction(v + 1e-6, fc, fs, vs, vc, gamma)[0] - _friction(v - 1e-6, fc, fs, vs, vc, gamma)[0]) / 2e-6
+        assert s == pytest.approx(num, rel=1e-5, abs=1e-9)
+
+
+def test_dry_friction_makes_the_gain_amplitude_dependent():
+    lev = Levitator()
+    base = lev.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0)
+
+    def gain(plant, amp):
+        u = random_binary(6000, 0.25, 2.75 - amp, 2.75 + amp, seed=3)
+        d = plant.simulate(u, noise=False, start=2.75).trim(1000)
+        return np.std(d.y) / np.std(d.u)
+
+    small, large = gain(lev, 0.05), gain(lev, 1.25)
+    assert large > 2.0 * small  # small motions are held back by the dry friction
+    assert gain(base, 1.25) / gain(base, 0.05) < 1.5  # without it the plant is nearly linear
+    # small-signal (Jacobian) damping includes the friction's slope at rest
+    zeta = [_dominant(ct.poles(lev.linearize(2.75, dry_friction=dry).sys_d), 1e-3)[1] for dry in (True, False)]
+    assert zeta[0] > zeta[1]
+
+
+def test_set_valued_stiction_holds_then_releases():
+    sticky = Levitator().with_params(v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05,
+                                     stiction_lower=0.0, stiction_upper=0.0, gamma_lower=2.0, gamma_upper=0.5)
+    held = sticky.simulate(np.full(500, 2.8), start=2.75, noise=False)
+    eq = sticky.equilibrium(2.75)
+    assert np.all(held.meta["h"] == eq.h) and np.all(held.meta["z"] == eq.z)  # stuck: no creep at all
+    moved = sticky.simulate(np.full(500, 3.5), start=2.75, noise=False)
+    jump = sticky.equilibrium(3.5).h - eq.h
+    assert abs(moved.meta["h"][-1] - eq.h - jump) < 0.5 * jump  # a large force breaks it free
+    creeping = Levitator().simulate(np.full(3000, 2.8), start=2.75, noise=False)  # smooth law: creeps home
+    assert creeping.meta["h"][-1] == pytest.approx(Levitator().equilibrium(2.8).h, abs=1e-6)
+
+
+def test_linear_gain_equals_static_slope():
+    lev = Levitator()
+    for u0 in (2.0, 3.0):
+        slope = (lev.equilibrium(u0 + 1e-4).y - lev.equilibrium(u0 - 1e-4).y) / 2e-4
+        lin = lev.linearize(u0)
+        assert lin.dc_gain == pytest.approx(slope, rel=1e-4)
+        assert float(np.real(ct.dcgain(lin.sys_d))) == pytest.approx(slope, rel=1e-4)
+    assert lev.linearize(6.0).dc_gain == 0.0  # saturated regulator: no small-signal gain
+
+
+def test_time_base_flag_stretches_transients():
+    labelled, physical = Levitator(), Levitator(physical_time=True)
+    scale = labelled.params.t_phys / 1e-3
+    assert labelled.time_scale() == pytest.approx(scale) and physical.time_scale() == 1.0
+    wn_l = max(abs(p) for p in ct.poles(labelled.linearize(2.75).sys_c))
+    wn_p = max(abs(p) for p in ct.poles(physical.linearize(2.75).sys_c))
+    assert wn_l / wn_p == pytest.approx(scale)
+    u = np.r_[np.full(1000, 2.5), np.full(3000, 3.0)]
+    t_l = np.argmax(labelled.simulate(u, start=2.5, noise=False).y > labelled.equilibrium(2.75).y)
+    t_p = np.argmax(physical.simulate(u, start=2.5, noise=False).y > physical.equilibrium(2.75).y)
+    assert (t_p - 1000) / (t_l - 1000) == pytest.approx(scale, rel=0.25)
+
+
+def test_noise_level_spectrum_quantisation_and_seed():
+    lev = Levitator()
+    d1 = lev.simulate(np.full(20000, 3.0), seed=7)
+    d2 = lev.simulate(np.full(20000, 3.0), seed=7)
+    d3 = lev.simulate(np.full(20000, 3.0), seed=8)
+    assert np.array_equal(d1.y, d2.y) and not np.array_equal(d1.y, d3.y)
+    y = d1.y[5000:]
+    p = lev.params
+    assert np.std(y) == pytest.approx(p.noise_std, rel=0.15)
+    grid = y / p.quant
+    assert np.allclose(grid, np.round(grid), atol=1e-6)
+    f, psd = signal.welch(y - y.mean(), nperseg=512)
+    assert 0.30 <= f[np.argmax(psd)] <= 0.34  # mains ripple aliased as in the real records
+
+
+@pytest.mark.parametrize("bad", [-0.5, 10.5])
+def test_current_outside_range_is_refused(bad):
+    u = np.full(100, 2.0)
+    u[10] = bad
+    with pytest.raises(ValueError, match=r"u must stay within .*\[0, 10\] A.*" + re.escape(repr(bad))):
+        Levitator().simulate(u)
+    with pytest.raises(ValueError, match="u must stay within"):
+        Levitator().linearize(bad)
+
+
+def test_bad_parameters_are_named():
+    with pytest.raises(ValueError, match="LevitatorParams.m must be a positive number, got -1"):
+        LevitatorParams(m=-1.0)
+    with pytest.raises(ValueError, match="Ts must be"):
+        Levitator().simulate(np.full(100, 2.0), Ts=0.0)

@@ -1,0 +1,213 @@
+"""Tests of maglev.sim.sim_vs_real: the simulator's defaults reproduce the real KTH records.
+
+Each test replays a real record's input through the default simulator and compares
+the numbers the lab computes on both; the real records are needed (skips otherwise).
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from maglev.sim import sim_vs_real
+from maglev.sim.bla import FrequencyResponse
+from maglev.sim.plant import Levitator
+from maglev.refdata import KTH_2022, load_record
+
+REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
+needs_real = pytest.mark.skipif(not (REAL / KTH_2022).is_dir(),
+                                reason=f"real lab records not found under {REAL} "
+                                "(set MAGLEV_REFDATA to the shared refdata folder)")
+
+
+def test_dominant_mode_converts_discrete_poles():
+    Ts = 0.001
+    s = -30 + 80j
+    poles = np.exp(np.array([s, np.conj(s), -400.0]) * Ts)
+    wn, zeta = sim_vs_real.dominant_mode(poles, Ts)
+    assert wn == pytest.approx(abs(s)) and zeta == pytest.approx(30 / abs(s))
+
+
+def test_complex_modes_lists_every_pair_slowest_first_and_least_damped_picks_smallest_zeta():
+    Ts = 0.002
+    s1, s2 = -60 + 200j, -20 + 80j
+    poles = np.exp(np.array([s1, np.conj(s1), -5.0, s2, np.conj(s2)]) * Ts)
+    modes = sim_vs_real.complex_modes(poles, Ts)
+    assert [m[0] for m in modes] == pytest.approx([abs(s2), abs(s1)])
+    assert [m[1] for m in modes] == pytest.approx([20 / abs(s2), 60 / abs(s1)])
+    assert sim_vs_real.least_damped(modes) == modes[0]
+    assert np.isnan(sim_vs_real.least_damped([])[0])
+    drift = (3.0, 0.001)  # a slow, barely damped pair is drift, not the resonance asked for
+    assert sim_vs_real.least_damped([drift] + modes) == modes[0]
+
+
+@needs_real
+@pytest.mark.realdata
+def test_defaults_reproduce_the_real_records():
+    cmp = sim_vs_real.compare(Levitator(zero_at_10=True), REAL, records=("binary_signal_3",),
+                              fourth_order_records=(), armax_check=False, frf_records=())
+    # static curve within 5 x the sensor noise std (rms over the 21 levels)
+    assert cmp.static_rms <= cmp.static_tolerance
+    std_r, peak_r, q_r = cmp.noise_real
+    std_s, peak_s, q_s = cmp.noise_sim
+    assert std_s == pytest.approx(std_r, rel=0.15)
+    assert 0.30 <= peak_r <= 0.34 and abs(peak_s - peak_r) < 0.01
+    assert q_s == pytest.approx(q_r, rel=1e-3)
+    assert cmp.rise_sim == pytest.approx(cmp.rise_real, rel=sim_vs_real.RISE_TOLERANCE)
+    assert cmp.alpha_sim == cmp.alpha_real
+    (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
+    assert wn_s == pytest.approx(wn_r, rel=0.2)
+    assert z_s == pytest.approx(z_r, rel=0.2)
+    table = cmp.table().splitlines()  # the printed comparison states these numbers
+    assert f"rms {cmp.static_rms:.4f} cm (tolerance {sim_vs_real.STATIC_NOISE_MULTIPLE:g} x noise std " \
+           f"= {cmp.static_tolerance:.4f} cm)" in table
+    row = next(line.split() for line in table if line.split()[:1] == ["binary_signal_3"])
+    assert [float(row[1]), float(row[2])] == pytest.approx([wn_r, wn_s], abs=0.051)  # printed %.1f
+    assert [float(row[4]), float(row[5])] == pytest.approx([z_r, z_s], abs=0.0051)  # printed %.2f
+
+
+# ---------------------------------------------------------------------- dynamics and dry friction
+STD_FACTOR = 2.0  # every record's simulated output std within this factor of the real one
+
+
+@pytest.fixture(scope="module")
+def full_comparison():
+    return sim_vs_real.compare(Levitator(zero_at_10=True), REAL)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_response_to_binary_is_much_larger_than_to_white_noise_as_on_the_rig(full_comparison):
+    stds = full_comparison.stds
+    (bin_real, bin_sim), (wn_real, wn_sim) = stds["binary_signal_2"], stds["white_noise_4"]
+    # same 1.5-4 A range: a linear plant would give about 3x (input power at the resonance);
+    # the real rig gives ~20x, the dry friction makes the simulator's ratio at least 3x too
+    assert bin_real >= 3.0 * wn_real
+    assert bin_sim >= 3.0 * wn_sim
+    for rec, (real, sim) in stds.items():
+        assert 1.0 / STD_FACTOR <= sim / real <= STD_FACTOR, (rec, real, sim)
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.parametrize("record", sim_vs_real.POLE_RECORDS)
+def test_dominant_mode_of_binary_records_within_20_percent(full_comparison, record):
+    (wn_r, z_r), (wn_s, z_s) = full_comparison.modes[record]
+    assert wn_s == pytest.approx(wn_r, rel=0.2)
+    assert z_s == pytest.approx(z_r, rel=0.2)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_white_noise_mode_within_20_percent(full_comparison):
+    # small white noise over 1.5-4 A does not excite the 90 rad/s mode enough to identify it,
+    # on the rig or in the simulator; its least-damped identified mode is the second one
+    (wn_r, z_r), (wn_s, z_s) = full_comparison.white_noise_mode
+    assert 150 < wn_r < 300
+    assert wn_s == pytest.approx(wn_r, rel=0.2)
+    assert z_s == pytest.approx(z_r, rel=0.2)
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.parametrize("record", ["binary_signal_2", "binary_signal_3"])
+def test_fourth_order_models_show_both_lightly_damped_modes_on_rig_and_simulator(full_comparison, record):
+    for modes in full_comparison.fourth_order[record]:  # real, then simulated
+        slow = [m for m in modes if 60 < m[0] < 120 and m[1] < 0.5]
+        fast = [m for m in modes if 180 < m[0] < 260 and m[1] < 0.5]
+        assert slow and fast, (record, modes)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_damping_falls_with_amplitude_as_on_the_rig(full_comparison):
+    # α = .25 (large, slow motion) is less damped than α = .5 over the same range, as on the rig
+    modes = full_comparison.modes
+    for big, small in (("binary_signal_2", "binary_signal_3"), ("binary_signal_1", "binary_signal_4")):
+        assert modes[big][0][1] < modes[small][0][1]  # real
+        assert modes[big][1][1] < modes[small][1][1]  # simulated
+
+
+# ---------------------------------------------------------------------- issue 15: ARMAX modes, FRF vs BLA
+def _response(G: np.ndarray, coherence: np.ndarray) -> FrequencyResponse:
+    w = np.linspace(0.0, np.pi / 1e-3, G.size)
+    ones = np.ones(G.size)
+    return FrequencyResponse(w=w, G=G, std=0.1 * np.abs(G), coherence=coherence, Suu=ones, Syy=ones, Ts=1e-3,
+                             averages=10)
+
+
+def test_frf_comparison_scores_the_coherent_band_only():
+    n = 9
+    real = _response(np.full(n, 1.0 + 0j), np.array([1.0, 0.9, 0.9, 0.2, 0.6, 0.4, 0.7, 0.1, 0.0]))
+    sim_G = np.array([9.0, 2.0, 1.0, 100.0, 0.5, 100.0, 1.0, 100.0, 100.0], dtype=complex)
+    sim = _response(sim_G, np.ones(n))
+    cmp = sim_vs_real.FrfComparison(record="x", real=real, sim=sim)
+    # DC and the bins with coherence < FRF_COHERENCE are left out
+    assert cmp.band.tolist() == [False, True, True, False, True, False, True, False, False]
+    np.testing.assert_allclose(cmp.difference_db, 20 * np.log10([2.0, 1.0, 0.5, 1.0]))
+    assert cmp.max_db == pytest.approx(20 * np.log10(2.0))
+    assert "within 3 dB: no" in cmp.text()
+
+
+def test_two_modes_picks_the_least_damped_pair_per_band():
+    modes = [(20.0, 0.05), (74.0, 0.26), (95.0, 0.4), (218.0, 0.11), (230.0, 0.7), (3400.0, 0.3)]
+    assert sim_vs_real.two_modes(modes) == ((74.0, 0.26), (218.0, 0.11))
+    assert sim_vs_real.two_modes([(124.0, 0.18)]) == ((124.0, 0.18), None)
+    errs = sim_vs_real.armax_errors(((124.0, 0.18), None), ((74.0, 0.26), (218.0, 0.11)))
+    assert errs["slow wn"] == pytest.approx(124 / 74 - 1) and np.isnan(errs["fast zeta"])
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_rig_shows_two_lightly_damped_armax_modes_and_coherent_frequency_responses(full_comparison):
+    # the issue's numbers for binary_signal_2: ≈ 74 rad/s ζ ≈ 0.26 and ≈ 218 rad/s ζ ≈ 0.11
+    slow, fast = sim_vs_real.two_modes(full_comparison.armax[0])
+    assert slow == pytest.approx((74, 0.26), rel=0.03) and fast == pytest.approx((218, 0.11), rel=0.05)
+    for rec, c in full_comparison.frf.items():
+        assert c.band.sum() >= 40, rec  # a usable band where the real estimate is coherent
+        assert c.real_error_db < 1.0, rec  # and its magnitude known to better than 1 dB there
+        assert np.median(c.sim.std[c.band] / np.abs(c.sim.G[c.band])) < 0.1  # the BLA's own error is small
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_simulated_plant_offers_armax_both_modes_the_sensor_noise_line_can_hide_one(full_comparison):
+    # ARMAX's A polynomial carries the noise's poles too: on the noise-free simulated record it finds
+    # both lightly damped modes, and so it does on the noisy record once the sensor's mains-ripple line
+    # is removed (same seed, the broadband part of the sensor noise kept)
+    assert all(sim_vs_real.two_modes(full_comparison.armax_noise_free))
+    real = load_record(sim_vs_real.ARMAX_RECORD, REAL)
+    no_line = Levitator(zero_at_10=True).with_params(noise_line_fraction=0.0).simulate(real.u, Ts=real.Ts, seed=1)
+    assert all(sim_vs_real.two_modes(sim_vs_real.armax_modes_of(no_line)))
+
+
+# Issue 15's done-when checks the defaults do not meet yet (docs/simulator.md, "Not matched"):
+# strict xfail, so the suite says so when a new plant model meets them.
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.xfail(strict=True, reason="one ARMAX mode near 124 rad/s: the sensor-noise line takes two poles; "
+                   "noise-free the fast mode is 2.7x too damped (docs/simulator.md)")
+def test_armax_modes_of_binary_signal_2_match_the_rig(full_comparison):
+    real, sim = (sim_vs_real.two_modes(m) for m in full_comparison.armax)
+    errs = sim_vs_real.armax_errors(sim, real)
+    assert all(abs(errs[f"{m} wn"]) <= 0.15 and abs(errs[f"{m} zeta"]) <= 0.30 for m in ("slow", "fast"))
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.xfail(strict=True, reason="α .25 / white-noise std ratio 7x vs the rig's 20x: no friction law tried "
+                   "grades the damping with amplitude as the rig does without creep on the stair (docs/simulator.md)")
+def test_output_stds_and_their_ratio_match_the_rig(full_comparison):
+    for rec, (real, sim) in full_comparison.stds.items():
+        assert 0.8 <= sim / real <= 1.25, rec
+    real, sim = full_comparison.std_ratio
+    assert abs(sim / real - 1) <= 0.25
+
+
+@needs_real
+@pytest.mark.realdata
+@pytest.mark.xfail(strict=True, reason="BLA 6-10 dB off the rig's FRF in places (docs/simulator.md)")
+def test_bla_within_3_db_of_the_rigs_frequency_response(full_comparison):
+    for rec in ("binary_signal_2", "white_noise_4"):
+        assert full_comparison.frf[rec].max_db <= 3.0, rec
