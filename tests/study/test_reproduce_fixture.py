@@ -19,7 +19,7 @@ from maglev.study.reproduce import recompute, same
 FIXTURES = sorted((Path(__file__).parent / "fixtures" / "before_layout").glob("*.json"))
 # metrics redefined on purpose after the fixtures were logged: they measure the same thing, so stay close
 REDEFINED = {  # metric: relative tolerance
-    "g_bla_err": 0.05,  # integrated finer than the BLA's Welch frequencies (bla-rank; README, "Is the BLA ...")
+    "g_bla_err": 0.05,  # integrated finer than the BLA's Welch frequencies (README, "Is the best linear approximation the truth?")
     "g_bla_err_unweighted": 0.05,
 }
 
