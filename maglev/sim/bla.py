@@ -311,31 +311,54 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
 
 
 # ---------------------------------------------------------------------- distances
+OVERSAMPLE = 32  # frequencies per Welch bin when the model's response is a function (converged to 1e-3)
+
+
 def _norm2(x: np.ndarray, weight: np.ndarray) -> float:
     return float(np.sum(np.abs(x) ** 2 * weight))
 
 
-def weighted_distance(G_model: np.ndarray, ref: FrequencyResponse) -> float:
+def weighted_distance(G_model: np.ndarray | Callable[[np.ndarray], np.ndarray], ref: FrequencyResponse) -> float:
     """‖G - G_BLA‖_Φu / ‖G_BLA‖_Φu: a model's excess simulation error on the class, relative.
 
-    ``G_model`` is the model's frequency response at ``ref.w`` (e.g.
-    ``model.freqresp(ref.w)``, on the same sampling period).  Squared and times
-    ‖G_BLA‖²_Φu it is E|y - G u|² - var(y_s).
+    ``G_model`` is the model's frequency response as a function of ω (e.g.
+    ``model.freqresp``, on the same sampling period), or its values at ``ref.w``.
+    Squared and times ‖G_BLA‖²_Φu it is E|y - G u|² - var(y_s).
+
+    Given the function, the integral is taken on a grid :data:`OVERSAMPLE` times finer
+    than the Welch frequencies, with G_BLA and Φu interpolated linearly between them:
+    a feature of G narrower than one Welch bin (a slow pole-zero pair near ω = 0, a
+    sharp resonance) then counts with the band it occupies.  Sampled at ``ref.w`` only,
+    such a feature counts with its value at one frequency.  An OE [4 4 2] model of the
+    lab's narrow uniform class has a pole at 0.99942 and a zero at 0.99996 (|G(0)| = 0.04
+    against 0.56 for the BLA, back to the BLA's level by 0.1 Hz): it scores 0.34 at the
+    Welch frequencies, 0.19 on the fine grid, and OE [3 3 2] 0.11 and 0.12.  On four
+    held-out records its mean square simulation error exceeds OE [3 3 2]'s by 0.18e-5 cm²;
+    the fine grid predicts 0.15e-5, the Welch frequencies 0.68e-5.
     """
-    G_model = _at_grid(G_model, ref)
-    return math.sqrt(_norm2(G_model - ref.G, ref.Suu) / _norm2(ref.G, ref.Suu))
+    G_model, G_ref, Suu, quad = _on_grid(G_model, ref)
+    return math.sqrt(_norm2(G_model - G_ref, Suu * quad) / _norm2(G_ref, Suu * quad))
 
 
-def relative_distance(G_model: np.ndarray, ref: FrequencyResponse) -> float:
-    """Unweighted ‖G - G_BLA‖ / ‖G_BLA‖ over the grid 0 .. Nyquist."""
-    G_model = _at_grid(G_model, ref)
-    ones = np.ones_like(ref.w)
-    return math.sqrt(_norm2(G_model - ref.G, ones) / _norm2(ref.G, ones))
+def relative_distance(G_model: np.ndarray | Callable[[np.ndarray], np.ndarray], ref: FrequencyResponse) -> float:
+    """Unweighted ‖G - G_BLA‖ / ‖G_BLA‖ over 0 .. Nyquist (``G_model`` as for :func:`weighted_distance`)."""
+    G_model, G_ref, _, quad = _on_grid(G_model, ref)
+    return math.sqrt(_norm2(G_model - G_ref, quad) / _norm2(G_ref, quad))
 
 
-def _at_grid(G_model: np.ndarray, ref: FrequencyResponse) -> np.ndarray:
-    G_model = np.asarray(G_model)
-    if G_model.shape != ref.w.shape:
-        raise ValueError(f"G_model must be the model's response at the reference's {ref.w.size} frequencies "
-                         f"(e.g. model.freqresp(ref.w)), got shape {G_model.shape}")
-    return G_model
+def _on_grid(G_model, ref: FrequencyResponse) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(G, G_BLA, Φu, quadrature weights) on the grid the norms are summed over: ``ref.w`` with unit
+    weights for values, the fine grid with trapezoid weights for a function."""
+    if not callable(G_model):
+        G_model = np.asarray(G_model)
+        if G_model.shape != ref.w.shape:
+            raise ValueError(f"G_model must be the model's response at the reference's {ref.w.size} frequencies "
+                             f"(e.g. model.freqresp(ref.w)) or a function of ω, got shape {G_model.shape}")
+        return G_model, ref.G, ref.Suu, np.ones(ref.w.size)
+    w = np.linspace(ref.w[0], ref.w[-1], (ref.w.size - 1) * OVERSAMPLE + 1)
+    G_ref = np.interp(w, ref.w, ref.G.real) + 1j * np.interp(w, ref.w, ref.G.imag)
+    Suu = ref.Suu.copy()
+    Suu[[0, -1]] *= 2  # Welch's one-sided density does not double its end bins; the density's limits there do
+    quad = np.full(w.size, w[1] - w[0])
+    quad[[0, -1]] /= 2
+    return np.asarray(G_model(w)), G_ref, np.interp(w, ref.w, Suu), quad

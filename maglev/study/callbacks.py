@@ -154,6 +154,8 @@ class SweepCallback(Callback):
         task = task_config(config)
         check_sweep(config)
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
+        if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
+            render.start()  # the renderer's process imports while the store and the lab steps are made
         client, exp_id = tracking.connect(task["tracking"])
         self.client, self.exp_id = client, exp_id
         sid = sweep_id(config, task)

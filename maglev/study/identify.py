@@ -124,12 +124,12 @@ def bla_distance(model: PolyModel, ref) -> dict[str, float]:
 
     ``g_bla_err``: ‖G − G_BLA‖ weighted by the input class's spectrum, relative to ‖G_BLA‖ —
     by E|y − G u|² = ‖G_BLA − G‖²_Φu + var(y_s) the model's excess simulation error on the
-    class; ``g_bla_err_unweighted``: the same on a uniform frequency grid;
+    class; ``g_bla_err_unweighted``: the same with uniform weight over 0 … Nyquist;
     ``bla_fit_ceiling``: the BLA's own simulation FIT on the class, which no linear model beats.
     """
     from maglev.sim.bla import relative_distance, weighted_distance
 
-    g = model.freqresp(ref.w)
+    g = model.freqresp  # a function: the norms are integrated finer than the BLA's Welch frequencies
     return {"g_bla_err": weighted_distance(g, ref), "g_bla_err_unweighted": relative_distance(g, ref),
             "bla_fit_ceiling": ref.fit_ceiling}
 

@@ -3,8 +3,8 @@
 A run's five figures cost far more than its estimation (matplotlib's text layout and
 rasterising) and no number depends on them.  In a sweep on the basic launcher, a job
 logs everything else, hands the figure inputs (:class:`maglev.study.identify.FigureInputs`)
-to the renderer (two processes) and returns; the renderer draws, uploads the PNGs and only then
-marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
+to the renderer (one process, started with the sweep) and returns; the renderer draws,
+uploads the PNGs and only then marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
 for it (:func:`drain`) before it counts the runs and the ranking reads them.  A single
 run, or a job in a joblib worker (already one of several processes), draws inline.
 """
@@ -18,9 +18,12 @@ from concurrent.futures.process import BrokenProcessPool
 
 log = logging.getLogger("maglev.study")
 
-WORKERS = 2  # drawing costs ≈ 3× a run's estimation: two renderers keep up on two cores
+# One renderer: a run's five figures take ≈ 0.7 s of CPU, less than the time from one run to the next, so one
+# process keeps up on the second core; a second one cost ≈ 3-5 s more CPU per sweep (its imports) for no
+# shorter sweep (36-48 s both ways at load 1.5-2.5, bench/study_overhead.py --sweep)
+WORKERS = 1
 _pool: ProcessPoolExecutor | None = None
-_pending: dict[str, tuple[str, Future]] = {}  # run id -> (tracking URI, its render)
+_pending: dict[str, tuple[str, Future, object]] = {}  # run id -> (tracking URI, its render, figure inputs)
 
 
 def draw_and_finish(uri: str, run_id: str, inputs) -> None:
@@ -43,14 +46,36 @@ def draw_and_finish(uri: str, run_id: str, inputs) -> None:
     client.set_terminated(run_id, "FINISHED")
 
 
+def _worker_start() -> None:
+    """In each renderer process: import what drawing needs, before the first run's figures arrive."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import mlflow  # noqa: F401
+
+    import maglev.study.figures  # noqa: F401
+    import maglev.study.tracking  # noqa: F401
+
+
+def start() -> None:
+    """Start the renderer now (a sweep's start: its processes import while the store and the lab steps are
+    made), not at the first run's figures."""
+    global _pool
+    if _pool is None:
+        _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"),
+                                    initializer=_worker_start)
+        for _ in range(WORKERS):  # a spawned pool starts its processes on demand
+            _pool.submit(int)
+
+
 def submit(uri: str, run_id: str, inputs) -> None:
     """Queue the run's figures on the background renderer (started on first use)."""
     global _pool
     for _ in range(2):
         if _pool is None:
-            _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"))
+            start()
         try:
-            _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs))
+            _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs), inputs)
             return
         except BrokenProcessPool:  # the renderer died earlier: start a new one
             _pool = None
@@ -59,14 +84,23 @@ def submit(uri: str, run_id: str, inputs) -> None:
 
 def pending() -> list[str]:
     """Run ids whose figures are not drawn yet."""
-    return [run_id for run_id, (_, fut) in _pending.items() if not fut.done()]
+    return [run_id for run_id, (_, fut, _) in _pending.items() if not fut.done()]
 
 
 def drain() -> dict[str, str]:
-    """Wait for every queued render; returns ``{run id: error}`` for runs the renderer could not finish
-    (its process died): those are marked FAILED with the error, never left RUNNING."""
+    """Wait for every queued render, drawing the runs the renderer has not started yet here, beside it (the
+    caller waits anyway, and the renderer lags a few runs behind at a sweep's end); returns ``{run id:
+    error}`` for runs that could not be finished (the renderer's process died, or uploading failed): those
+    are marked FAILED with the error, never left RUNNING."""
     failed = {}
-    for run_id, (uri, fut) in list(_pending.items()):
+    for run_id in [run_id for run_id, (_, fut, _) in _pending.items() if fut.cancel()]:
+        uri, _, inputs = _pending.pop(run_id)
+        try:
+            draw_and_finish(uri, run_id, inputs)
+        except Exception as exc:  # noqa: BLE001 — e.g. the store refused the upload
+            failed[run_id] = f"{type(exc).__name__}: {exc}"
+            _fail(uri, run_id, failed[run_id])
+    for run_id, (uri, fut, _) in list(_pending.items()):
         try:
             fut.result()
         except Exception as exc:  # noqa: BLE001 — e.g. BrokenProcessPool: the renderer died
@@ -80,7 +114,7 @@ def abandon(status: str = "KILLED") -> list[str]:
     """Stop the renderer without waiting (the sweep is dying): runs whose figures were not drawn get
     ``status`` — those still queued, and those whose renderer died (SIGTERM reaches it too)."""
     global _pool
-    left = [run_id for run_id, (_, fut) in _pending.items()
+    left = [run_id for run_id, (_, fut, _) in _pending.items()
             if not (fut.done() and not fut.cancelled() and fut.exception() is None)]
     if _pool is not None:
         _pool.shutdown(wait=False, cancel_futures=True)

@@ -52,6 +52,29 @@ def test_bla_of_a_linear_plant_is_its_transfer_function_within_the_standard_erro
     assert relative_distance(1.1 * TRUE.freqresp(est.w), est) == pytest.approx(0.1, abs=0.02)
 
 
+def test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies():
+    """A slow pole-zero pair near ω = 0 (as OE [4 4 2] fits on the narrow uniform class) on a flat input
+    spectrum: given the model's response as a function the distance is the integral's; sampled at the
+    Welch frequencies it weighs the pair's dip at ω = 0 as if it filled a whole bin."""
+    from maglev.sim.bla import FrequencyResponse
+
+    w = np.linspace(0, np.pi / 1e-3, 1001)  # the Welch grid of 2 s segments at 1 ms: 0.5 Hz apart
+    suu = np.ones(w.size)
+    suu[[0, -1]] = 0.5  # a one-sided Welch density: end bins not doubled
+    ref = FrequencyResponse(w=w, G=TRUE.freqresp(w), std=np.zeros(w.size), coherence=np.ones(w.size), Suu=suu,
+                            Syy=suu, Ts=1e-3, averages=1)
+    dense = np.linspace(0, np.pi / 1e-3, 2_000_001)
+    for zero, pole, grid_error in ((0.99996, 0.9994, 0.3), (0.99, 0.95, 0.0)):
+        model = PolyModel(A=[1.0], B=np.convolve(TRUE.B, [1.0, -zero]), C=[1.0], D=[1.0],
+                          F=np.convolve(TRUE.F, [1.0, -pole]), nk=2, Ts=1e-3, structure="oe")
+        g0, g = TRUE.freqresp(dense), model.freqresp(dense)
+        exact = np.sqrt(np.trapezoid(np.abs(g - g0) ** 2, dense) / np.trapezoid(np.abs(g0) ** 2, dense))
+        assert weighted_distance(model.freqresp, ref) == pytest.approx(exact, rel=0.01)
+        assert relative_distance(model.freqresp, ref) == pytest.approx(exact, rel=0.01)  # flat Φu: the same
+        on_grid = weighted_distance(model.freqresp(w), ref)
+        assert on_grid > (1 + grid_error) * exact if grid_error else on_grid == pytest.approx(exact, rel=0.01)
+
+
 def test_one_record_frequency_response_error_matches_its_coherence_based_standard_error():
     u = input_signal(replace(BINARY, seed=3, duration_s=40.0))
     frf = frequency_response(IOData(u=u, y=_linear_plant(u, 4), Ts=1e-3).trim(2000).detrend())

@@ -14,19 +14,22 @@ from maglev.study.cautions import cautions
 pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")
 
 # a sweep where nothing is wrong: every model beats y(t−1), simulates about as it predicts, passes its tests,
-# the best order by AIC (3) is inside the grid 2..4, every dataset at the working point
-GOOD = [  # name, structure, order, dataset, val_fit, aic
-    ("bj[3 3 3 3 2] · b", "bj", 3, "b", 95.0, -900.0), ("bj[2 2 2 2 2] · b", "bj", 2, "b", 94.0, -800.0),
-    ("bj[4 4 4 4 2] · b", "bj", 4, "b", 94.5, -850.0), ("bj[3 3 3 3 2] · u", "bj", 3, "u", 93.0, -700.0),
-    ("bj[2 2 2 2 2] · u", "bj", 2, "u", 92.0, -600.0), ("bj[4 4 4 4 2] · u", "bj", 4, "u", 92.5, -650.0),
+# BJ's order supported by the simulation FIT (3: order 4 adds 0.5 point, order 2 loses 3) is inside the grid
+# 2..4 (ARMAX has one order: no grid), every dataset at the working point
+GOOD = [  # name, structure, order, dataset, val_fit, val_fit_sim, aic
+    ("armax[3 3 3 2] · b", "armax", 3, "b", 96.0, 91.0, -950.0),
+    ("bj[3 3 3 3 2] · b", "bj", 3, "b", 95.0, 90.0, -900.0), ("bj[2 2 2 2 2] · b", "bj", 2, "b", 94.0, 87.0, -800.0),
+    ("bj[4 4 4 4 2] · b", "bj", 4, "b", 94.5, 90.5, -850.0), ("bj[3 3 3 3 2] · u", "bj", 3, "u", 93.0, 88.0, -700.0),
+    ("bj[2 2 2 2 2] · u", "bj", 2, "u", 92.0, 85.0, -600.0), ("bj[4 4 4 4 2] · u", "bj", 4, "u", 92.5, 88.5, -650.0),
 ]
 
 
-def ranked(**changes) -> pd.DataFrame:
-    """The GOOD sweep ranked (best first), with ``changes``: column -> {row index: value}."""
+def ranked(rows=GOOD, **changes) -> pd.DataFrame:
+    """``rows`` (default GOOD) ranked (best first), with ``changes``: column -> {row index: value}.
+    GOOD ranked: 0 armax3·b, 1 bj3·b, 2 bj4·b, 3 bj2·b, 4 bj3·u, 5 bj4·u, 6 bj2·u."""
     rows = [{"name": n, "structure": s, "order": o, "dataset": d, "val_fit": f, "aic": a, "val_fit_naive": 85.0,
-             "val_fit_sim": f - 5, "whiteness_pvalue": 0.5, "independence_pvalue": 0.5, "max_pole_radius": 0.9,
-             "near_cancellations": 0, "u0": 2.75, "g_bla_err": 0.1} for n, s, o, d, f, a in GOOD]
+             "val_fit_sim": sim, "whiteness_pvalue": 0.5, "independence_pvalue": 0.5, "max_pole_radius": 0.9,
+             "near_cancellations": 0, "u0": 2.75, "g_bla_err": 0.1} for n, s, o, d, f, sim, a in rows]
     t = pd.DataFrame(rows).sort_values("val_fit", ascending=False).reset_index(drop=True)
     for col, values in changes.items():
         for i, v in values.items():
@@ -46,13 +49,16 @@ def test_no_caution_when_nothing_is_wrong():
     ({"whiteness_pvalue": {0: 0.001}}, {"top_fails_whiteness", "runs_fail_whiteness"}),
     ({"whiteness_pvalue": {3: 0.001}}, {"runs_fail_whiteness"}),  # not the top one
     ({"independence_pvalue": {0: 1e-9}}, {"top_fails_independence", "runs_fail_independence"}),
-    ({"val_fit_naive": {0: 94.5}}, {"top_no_better_than_naive", "runs_no_better_than_naive"}),
+    ({"val_fit_naive": {0: 95.5}}, {"top_no_better_than_naive", "runs_no_better_than_naive"}),
     ({"val_fit_naive": {5: 92.0}}, {"runs_no_better_than_naive"}),
     ({"val_fit_sim": {0: 40.0}}, {"top_simulates_poorly"}),
-    ({"val_fit_sim": {0: 75.5}}, set()),  # 19.5 points: below the threshold
+    ({"val_fit_sim": {0: 76.5}}, set()),  # 19.5 points: below the threshold
     ({"g_bla_err": {0: 0.5}}, {"top_far_from_bla"}),
-    ({"aic": {1: -2000.0, 4: -2000.0}}, {"order_at_edge_bj"}),  # order 4 now best: the top of the grid
-    ({"aic": {2: -2000.0, 5: -2000.0}}, {"order_at_edge_bj"}),  # order 2 now best: the bottom
+    ({"val_fit_sim": {2: 91.6, 5: 89.6}}, {"order_at_edge_bj"}),  # BJ 4 now 1.1 above 3: still rising at the top
+    ({"val_fit_sim": {2: 91.0, 5: 89.0}}, set()),  # BJ 4 exactly 1 point above 3: not more than the margin
+    ({"val_fit_sim": {3: 91.8, 6: 89.8}}, {"order_at_edge_bj"}),  # BJ 2 now 1.3 above all: falling from the bottom
+    ({"val_fit_sim": {3: 90.5, 6: 88.5}}, set()),  # BJ 2 level with 3 and 4: flat, no edge
+    ({"aic": {2: -2000.0, 5: -2000.0}}, set()),  # AIC alone falling to the top of the grid is no edge
     ({"max_pole_radius": {4: 1.01}}, {"unstable_models"}),
     ({"near_cancellations": {1: 2}}, {"top_cancellations"}),
     ({"near_cancellations": {5: 2}}, set()),  # rank 6: not in the top four
@@ -62,23 +68,57 @@ def test_each_caution_appears_exactly_when_its_condition_holds(changes, expected
 
 
 def test_order_edge_suggests_the_next_order_and_working_points_name_the_offset_dataset():
-    [edge] = cautions(ranked(aic={1: -2000.0, 4: -2000.0}))  # rows 1 and 4 are the order-4 models
-    assert edge.numbers == {"best": 4, "grid": [2, 3, 4], "suggest": 5} and "add order 5" in edge.text
-    [low] = cautions(ranked(aic={2: -2000.0, 5: -2000.0}))
-    assert low.numbers["suggest"] == 1 and "the lowest of the swept orders [2, 3, 4]" in low.text
+    [edge] = cautions(ranked(val_fit_sim={2: 91.6, 5: 89.6}))  # rows 2 and 5 are the BJ order-4 models
+    assert edge.numbers == {"chosen": 4, "grid": [2, 3, 4], "suggest": 5, "edge": "upper",
+                            "fit": {2: 86.0, 3: 89.0, 4: 90.6}, "margin": 1.0}
+    assert edge.text == ("bj: the mean simulation FIT over 2 dataset(s) (order 2: 86.00 %, order 3: 89.00 %, "
+                         "order 4: 90.60 %) still rises by more than 1 point at the largest swept order 4: the "
+                         "smallest order within 1 point of the best is 4, the edge of the swept orders [2, 3, 4]; "
+                         "add order 5 (structure.order) before concluding.")
+    [low] = cautions(ranked(val_fit_sim={3: 91.8, 6: 89.8}))
+    assert low.numbers["suggest"] == 1 and low.numbers["edge"] == "lower"
+    assert "is highest at the smallest swept order 2, more than 1 point above every other" in low.text
     [wp] = cautions(ranked(), {"b": 2.75, "u": 2.12}, 2.75, 2.5)
     assert wp.key == "working_points_differ" and "u is centred at 2.12 A" in wp.text and "2.75 A" in wp.text
     assert cautions(ranked(), {"b": 2.75, "u": 2.55}, 2.75, 2.5) == []  # 0.2 A: within 10 % of 2.5 A
 
 
+# two orders, as the default sweep has (name, structure, order, dataset, val_fit, val_fit_sim, aic)
+TWO = [("arx[4 4 2] · b", "arx", 4, "b", 97.0, 38.0, -5e4), ("arx[5 5 2] · b", "arx", 5, "b", 97.1, 38.3, -5.1e4),
+       ("arx[4 4 2] · u", "arx", 4, "u", 96.0, 37.0, -4e4), ("arx[5 5 2] · u", "arx", 5, "u", 96.1, 37.5, -4.1e4)]
+
+
+@pytest.mark.parametrize("sim5, expected", [
+    ((38.3, 37.5), None),  # +0.4 on average: 5 adds nothing, 4 is chosen
+    ((37.3, 36.8), None),  # 5 slightly worse: 4 is chosen, the FIT does not fall by more than the margin
+    ((39.3, 38.3), "upper"),  # +1.3: still rising at 5, add 6
+    ((36.0, 35.8), "lower"),  # -1.6: falling from 4, add 3
+    ((39.0, 38.0), None),  # +1.0 exactly: not more than the margin
+])
+def test_two_order_grid_is_at_its_edge_only_when_the_fit_still_moves_by_more_than_the_margin(sim5, expected):
+    rows = [r if r[2] == 4 else (*r[:5], sim5[0] if r[3] == "b" else sim5[1], r[6]) for r in TWO]
+    found = [c for c in cautions(ranked(rows)) if c.key.startswith("order_at_edge")]
+    assert [c.numbers["edge"] for c in found] == ([expected] if expected else [])
+    if expected:
+        assert found[0].numbers["suggest"] == {"upper": 6, "lower": 3}[expected]
+
+
+def test_order_choice_uses_only_the_datasets_swept_at_every_order():
+    from maglev.study.cautions import order_choice
+
+    rows = [r for r in GOOD if r[1] == "bj" and not (r[2] == 4 and r[3] == "u")]  # dataset u lacks order 4
+    c = order_choice(ranked(rows))
+    assert c["datasets"] == 1 and c["fit"] == {2: 87.0, 3: 90.0, 4: 90.5} and c["chosen"] == 3 and c["edge"] is None
+
+
 def test_caution_sentences_state_their_numbers():
-    t = ranked(whiteness_pvalue={0: 5.8e-185}, val_fit_sim={0: 40.7}, val_fit_naive={0: 94.9})
+    t = ranked(whiteness_pvalue={0: 5.8e-185}, val_fit_sim={0: 40.7}, val_fit_naive={0: 95.9})
     text = {c.key: c.text for c in cautions(t)}
     assert "(p = 5.8e-185 < 0.01)" in text["top_fails_whiteness"]
-    assert "FIT 40.70 % against 95.00 % one step ahead (54.3 points lower)" in text["top_simulates_poorly"]
-    assert "y(t−1) alone scores 94.90 %" in text["top_no_better_than_naive"] and "+0.10 points" in text[
+    assert "FIT 40.70 % against 96.00 % one step ahead (55.3 points lower)" in text["top_simulates_poorly"]
+    assert "y(t−1) alone scores 95.90 %" in text["top_no_better_than_naive"] and "+0.10 points" in text[
         "top_no_better_than_naive"]
-    assert text["runs_fail_whiteness"].startswith("1 of 6 ranked models fail the whiteness test")
+    assert text["runs_fail_whiteness"].startswith("1 of 7 ranked models fail the whiteness test")
 
 
 # ---------------------------------------------------------------------------- through a store

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import time
+from concurrent.futures.process import EXTRA_QUEUED_CALLS
 
 import pytest
 
@@ -36,6 +37,9 @@ def test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones(store)
     render.drain()
     pid = next(iter(render._pool._processes))  # the renderer process, started by the first submit
     render.submit(uri, second, inputs=None)
+    deadline = time.monotonic() + 10
+    while not render._pending[second][1].running() and time.monotonic() < deadline:  # handed to the renderer
+        time.sleep(0.01)  # (queued runs it has not taken, drain draws itself)
     os.kill(pid, signal.SIGKILL)
     failed = render.drain()
     assert list(failed) == [second] and "BrokenProcessPool" in failed[second]
@@ -46,3 +50,33 @@ def test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones(store)
     time.sleep(0.1)
     assert render.abandon() in ([third], [])  # queued and not yet drawn: KILLED; or already done
     assert client.get_run(third).info.status in ("KILLED", "FINISHED")
+
+
+def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store):
+    uri, client, exp = store
+    render.abandon()  # no renderer left from an earlier test
+    render.start()
+    assert len(render._pool._processes) == render.WORKERS  # spawned now, importing while the sweep starts
+    pid = next(iter(render._pool._processes))
+    run = client.create_run(exp).info.run_id
+    render.submit(uri, run, inputs=None)
+    assert render.drain() == {} and client.get_run(run).info.status == "FINISHED"
+    assert next(iter(render._pool._processes)) == pid  # the same process drew it
+
+
+def test_drain_draws_the_runs_the_busy_renderer_has_not_started(store):
+    uri, client, exp = store
+    render.start()
+    render._pool.submit(time.sleep, 3)  # the renderer is busy
+    runs = [client.create_run(exp).info.run_id for _ in range(5)]
+    for run in runs:
+        render.submit(uri, run, inputs=None)
+    time.sleep(0.5)
+    futures = {run: render._pending[run][1] for run in runs}
+    assert render.drain() == {}
+    drawn_here = [run for run, fut in futures.items() if fut.cancelled()]  # the renderer never ran these
+    handed_ahead = render.WORKERS + EXTRA_QUEUED_CALLS  # the pool's call queue: runs taken before they start
+    assert len(drawn_here) >= len(runs) - handed_ahead
+    for run in runs:  # each finished, with its drawing error tagged (inputs=None), none lost
+        got = client.get_run(run)
+        assert got.info.status == "FINISHED" and got.data.tags["figures_error"].startswith("AttributeError")

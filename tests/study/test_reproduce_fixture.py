@@ -14,14 +14,21 @@ from pathlib import Path
 
 import pytest
 
-from maglev.study.reproduce import recompute
+from maglev.study.reproduce import recompute, same
 
 FIXTURES = sorted((Path(__file__).parent / "fixtures" / "before_layout").glob("*.json"))
+# metrics redefined on purpose after the fixtures were logged: they measure the same thing, so stay close
+REDEFINED = {  # metric: relative tolerance
+    "g_bla_err": 0.05,  # integrated finer than the BLA's Welch frequencies (README, "Is the best linear approximation the truth?")
+    "g_bla_err_unweighted": 0.05,
+}
 
 
 @pytest.mark.parametrize("path", FIXTURES, ids=[p.stem for p in FIXTURES])
 def test_a_config_logged_before_the_move_reproduces_identically(path):
     logged = json.loads(path.read_text())
-    ok, rows, _ = recompute(logged["config"], logged["metrics"])
+    _, rows, _ = recompute(logged["config"], logged["metrics"])
     assert len(rows) >= 30  # every metric but the timing
-    assert ok, [row for row in rows if row[1] != row[2]]
+    assert [row for row in rows if row[0] not in REDEFINED and not same(row[1], row[2])] == []
+    for name, logged_value, now in (row for row in rows if row[0] in REDEFINED):
+        assert now == pytest.approx(logged_value, rel=REDEFINED[name]), name

@@ -18,6 +18,7 @@ import pandas as pd
 from maglev.model import CANCEL_TOL
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
+from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.figures import orders_figure, png
 from maglev.study.ranking import validation_note
 
@@ -206,6 +207,18 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol
                        f"{num(by_order.loc[best_fit, 'fit'] - by_order.loc[best_aic, 'fit'])} FIT points "
                        f"{'better' if by_order.loc[best_fit, 'fit'] >= by_order.loc[best_aic, 'fit'] else 'worse'} "
                        f"than {esc(best_aic)}, which has the lower AIC.")
+        oc = order_choice(runs)
+        if oc is not None:
+            listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
+            if oc["edge"]:
+                where = f", at the {oc['edge']} edge of the swept orders: add order {oc['suggest']}."
+            elif oc["chosen"] == oc["grid"][0]:
+                where = (f", the smallest swept: the higher orders add at most {ORDER_MARGIN:g} point (no smaller "
+                         "order was swept).")
+            else:
+                where = ", inside the swept orders."
+            choice += (f" Mean simulation FIT by order ({listed}): the smallest order within {ORDER_MARGIN:g} point "
+                       f"of the best is <b>{oc['chosen']}</b>{where}")
         if flagged:
             choice += " Near cancellations mean the order is higher than the data support."
         entry = get_structure(st)
