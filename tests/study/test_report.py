@@ -113,8 +113,18 @@ def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
     lin = Levitator(zero_at_10=True).linearize(parent["lab.u_star"], Ts=m["Ts"])
     assert f"static gain {lin.dc_gain:.3f} cm/A" in prep and f"Working point u* = {parent['lab.u_star']:.2f} A" in prep
     assert "def get_average(" in prep and "def get_stationary_averages(" in prep
+    from maglev.study.datasets import dataset_bla
+    from maglev.study.store import run_config
+
     for name in ("uniform_narrow", "uniform_wide", "binary_a025"):
-        assert f"Best linear approximation for {name}" in prep
+        run = next(r for r in runs if r.data.tags.get("kind") == "model" and r.data.tags.get("dataset") == name)
+        b = dataset_bla(run_config(client, run.info.run_id)["dataset"])
+        db = b.magnitude_db[b.w > 0]
+        sentence = re.search(f"Best linear approximation for {name} .*?simulation FIT ceiling [^%]*%", prep).group(0)
+        # a resonance is claimed exactly when |G| rises above its low-frequency value, and by the stated amount
+        assert ("no resonance peak" not in sentence) == (db.max() > db[0]), sentence
+        if db.max() > db[0]:
+            assert f"({db.max() - db[0]:.1f} dB above the low-frequency gain)" in sentence
     [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
     assert sections["cautions"].count("<li>") == int(ranking.data.metrics["n_cautions"])
     bw = sections["best-vs-worst"]

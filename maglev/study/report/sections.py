@@ -391,10 +391,14 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
             blas[name] = b
             keep = b.w > 0
             peak = int(np.argmax(np.abs(b.G[keep])))
+            db = b.magnitude_db[keep]
+            resonance = (f"resonance peak {num(db[peak], 1)} dB at {num(b.w[keep][peak], 1)} rad/s "
+                         f"({num(db[peak] - db[0], 1)} dB above the low-frequency gain)" if peak else
+                         "no resonance peak (|G| is largest at the lowest frequency)")
             facts.append(f"Best linear approximation for {esc(name)} ({esc(c['dataset']['input_class'])} input, "
                          f"{num(c['dataset']['low'])}–{num(c['dataset']['high'])} A): gain {num(abs(b.G[keep][0]), 3)} "
-                         f"cm/A at {num(b.w[keep][0], 1)} rad/s, resonance peak {num(b.magnitude_db[keep][peak], 1)} dB "
-                         f"at {num(b.w[keep][peak], 1)} rad/s; simulation FIT ceiling {num(b.fit_ceiling, 1)} %.")
+                         f"cm/A at {num(b.w[keep][0], 1)} rad/s, {resonance}; simulation FIT ceiling "
+                         f"{num(b.fit_ceiling, 1)} %.")
     facts.append("The Jacobian is the model of infinitesimal motion, overdamped by the dry friction's slope at "
                  "rest; the lab's inputs move the magnets far beyond that, so the identified models are compared "
                  "with the best linear approximation of their input class, as in the figure below.")
