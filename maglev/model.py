@@ -21,6 +21,7 @@ from .data import IOData
 from .fit import fit_percent
 from .initial_state import INITIAL_CONDITIONS, fit_initial_state
 from .polynomials import filt, is_stable, polymul
+from .structures import PolySpec
 from .structures import get as get_structure
 
 
@@ -177,14 +178,19 @@ class PolyModel:
         return self.F.size - 1
 
     @property
+    def spec(self) -> PolySpec:
+        """The model's structure and orders: its parameter layout."""
+        return PolySpec(self.structure, na=self.na, nb=self.nb, nc=self.nc, nd=self.nd, nf=self.nf, nk=self.nk)
+
+    @property
     def orders(self) -> tuple[int, ...]:
         """Orders in MATLAB's order for the structure (e.g. ``[na nb nk]`` for ARX)."""
-        return tuple(getattr(self, k) for k in get_structure(self.structure).orders)
+        return self.spec.orders
 
     @property
     def label(self) -> str:
         """MATLAB-like label, e.g. ``bj[2 2 2 2 1]``."""
-        return f"{self.structure}[{' '.join(str(o) for o in self.orders)}]"
+        return self.spec.label
 
     @property
     def parameters(self) -> np.ndarray:

@@ -105,7 +105,7 @@ def _general_model() -> PolyModel:
 
 
 def _perturbed(model: PolyModel, theta: np.ndarray) -> PolyModel:
-    A, B, C, D, F = PolySpec.from_orders(model.structure, model.orders).polys(theta)
+    A, B, C, D, F = model.spec.polys(theta)
     return PolyModel(A=A, B=B, C=C, D=D, F=F, nk=model.nk, Ts=model.Ts, structure=model.structure)
 
 
