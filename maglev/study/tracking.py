@@ -413,15 +413,6 @@ def process_tags() -> dict[str, str]:
 
 
 # ---------------------------------------------------------------------------- queries
-def finished_run(client: MlflowClient, exp_id: str, chash: str) -> str | None:
-    """Id of a FINISHED run with this config hash, if any."""
-    runs = client.search_runs(
-        [exp_id], filter_string=f"tags.config_hash = '{chash}' and attributes.status = 'FINISHED'",
-        max_results=1,
-    )
-    return runs[0].info.run_id if runs else None
-
-
 def sweep_parent(sweep_dir: str | None) -> str | None:
     """The running sweep's parent run: ``$MAGLEV_PARENT_RUN_ID`` (set by the sweep callback, inherited by
     local workers; exact when two sweeps of one name share the sweep dir), else ``<sweep dir>/parent_run_id``
