@@ -97,7 +97,9 @@ def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) 
             print(f"maglev ui: the MLflow server on {base} {why}", file=sys.stderr)
             return 2
         print(f"MLflow UI: {url}   (Ctrl-C stops it)", flush=True)
-        return proc.wait()
+        while proc.poll() is None:  # not proc.wait(): a Ctrl-C the kernel hands to another thread (MLflow's
+            time.sleep(0.2)         # telemetry) leaves a blocking waitpid in the main thread uninterrupted
+        return proc.returncode
     except KeyboardInterrupt:
         return 0
     finally:
