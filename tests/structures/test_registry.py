@@ -63,19 +63,19 @@ def test_toy_structure_is_estimated_by_least_squares(fir):
         estimate(IOData(u, y, 0.01), "fir", [3, 2], max_iterations=5)
 
 
-def test_toy_structure_runs_through_a_sweep_and_the_ranking(fir, tmp_path):
+def test_toy_structure_runs_through_a_sweep_and_the_ranking(fir, migrated_store):
     from tests.study.harness import LEAN, TINY, all_runs, launch
 
     from maglev.study.ranking import compute, log_ranking
     from maglev.study.store import load_sweep
 
-    launch(tmp_path, "dataset=uniform_narrow,binary_a025", "structure=fir,arx", "structure.order=3", *TINY, *LEAN)
-    _, _, runs = all_runs(tmp_path)
+    launch(migrated_store, "dataset=uniform_narrow,binary_a025", "structure=fir,arx", "structure.order=3", *TINY, *LEAN)
+    _, _, runs = all_runs(migrated_store)
     fir_runs = [r for r in runs if r.data.tags.get("structure") == "fir"]
     assert len(fir_runs) == 2 and all(r.info.status == "FINISHED" for r in fir_runs)
     assert {r.data.tags["orders"] for r in fir_runs} == {"[3 1]"}  # nb from structure.order, nk the schema default
     assert all(r.data.metrics["n_params"] == 3 for r in fir_runs)
-    ranking = compute(load_sweep(f"sqlite:///{tmp_path}/mlflow.db", "maglev"))
+    ranking = compute(load_sweep(f"sqlite:///{migrated_store}/mlflow.db", "maglev"))
     assert set(ranking.table["structure"]) == {"fir", "arx"} and len(ranking.table) == 4
     assert ranking.structure in ("fir", "arx")  # both have binary- and uniform-input runs
     assert log_ranking(ranking)

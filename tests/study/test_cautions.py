@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -122,13 +123,16 @@ def test_caution_sentences_state_their_numbers():
 
 
 # ---------------------------------------------------------------------------- through a store
-def _store(tmp_path, best_white: float, best_indep: float, worst_white: float, worst_indep: float):
-    """A sweep of two runs whose logged residual tests are given; returns the computed Ranking."""
+def _store(tmp_path, empty_db, best_white: float, best_indep: float, worst_white: float, worst_indep: float):
+    """A sweep of two runs whose logged residual tests are given, in a copy of ``empty_db`` under
+    ``tmp_path``; returns the computed Ranking."""
     from maglev.study import tracking
     from maglev.study.ranking import compute
     from maglev.study.store import load_sweep
     from tests.study.test_ranking import model, resid_json
 
+    tmp_path.mkdir(exist_ok=True)
+    shutil.copyfile(empty_db, tmp_path / "mlflow.db")
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     client, exp = tracking.connect({"uri": uri, "experiment": "maglev", "artifact_location": str(tmp_path / "a")})
     parent = client.create_run(exp, run_name="s", tags={"kind": "sweep", "sweep": "s"}).info.run_id
@@ -151,11 +155,11 @@ def _store(tmp_path, best_white: float, best_indep: float, worst_white: float, w
     return compute(load_sweep(uri, "maglev"))
 
 
-def test_ranking_and_report_follow_the_residual_tests_both_ways(tmp_path):
+def test_ranking_and_report_follow_the_residual_tests_both_ways(tmp_path, migrated_db):
     from maglev.study.ranking import top_text
     from maglev.study.report import sections
 
-    r = _store(tmp_path, best_white=0.5, best_indep=1e-6, worst_white=0.5, worst_indep=0.993)
+    r = _store(tmp_path, migrated_db, best_white=0.5, best_indep=1e-6, worst_white=0.5, worst_indep=0.993)
     assert {c.key for c in r.cautions} == {"top_fails_independence", "runs_fail_independence"}
     models = {rid: PolyModel.from_dict(r.models[rid].to_dict()) for rid in r.models}
     page = sections.best_vs_worst(r, models)
@@ -167,7 +171,7 @@ def test_ranking_and_report_follow_the_residual_tests_both_ways(tmp_path):
     assert "Cautions (2):" in text and "fails the independence test (p = 1e-06 < 0.01)" in text
     assert sections.cautions(r.cautions).count("<li>") == 2
 
-    clean = _store(tmp_path / "clean", 0.5, 0.5, 0.5, 0.5)
+    clean = _store(tmp_path / "clean", migrated_db, 0.5, 0.5, 0.5, 0.5)
     assert clean.cautions == [] and "Cautions" not in top_text(clean)
     assert "No caution applies" in sections.cautions(clean.cautions)
     assert np.isclose(clean.table["val_fit_naive"], 80.0).all()

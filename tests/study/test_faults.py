@@ -103,7 +103,7 @@ def test_rank_against_a_closed_port_says_so_in_one_line(capsys, monkeypatch):
 
 
 # ---------------------------------------------------------------------------- a run that fails
-def test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_config(tmp_path, monkeypatch):
+def test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_config(migrated_store, monkeypatch):
     """The error tag goes first: an artifact store that refuses the upload loses the traceback, not the error."""
     from maglev.study import job, tracking
 
@@ -121,8 +121,8 @@ def test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_
 
     monkeypatch.setattr(job, "identify", broken)
     monkeypatch.setattr(tracking, "log_files", flaky_upload)
-    launch(tmp_path, "dataset=binary_a025", "structure=arx,oe", *TINY, "lab.enabled=false")
-    client, _, runs = all_runs(tmp_path)
+    launch(migrated_store, "dataset=binary_a025", "structure=arx,oe", *TINY, "lab.enabled=false")
+    client, _, runs = all_runs(migrated_store)
     kids = sorted((r for r in runs if r.data.tags.get("kind") == "model"), key=lambda r: r.info.start_time)
     assert [r.info.status for r in kids] == ["FAILED", "FAILED"]
     assert all(r.data.tags["error"] == "RuntimeError: estimation blew up" for r in kids)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -77,8 +78,10 @@ def make_store(tmp_path: Path) -> tuple[str, dict]:
 
 
 @pytest.fixture(scope="module")
-def store(tmp_path_factory):
-    return make_store(tmp_path_factory.mktemp("rank"))
+def store(tmp_path_factory, migrated_db):
+    path = tmp_path_factory.mktemp("rank")
+    shutil.copyfile(migrated_db, path / "mlflow.db")
+    return make_store(path)
 
 
 def test_rank_table_orders_by_fit_then_fewer_parameters():

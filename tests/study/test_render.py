@@ -15,9 +15,9 @@ pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy i
 
 
 @pytest.fixture
-def store(tmp_path):
-    uri = f"sqlite:///{tmp_path}/mlflow.db"
-    client, exp = tracking.connect({"uri": uri, "experiment": "maglev", "artifact_location": str(tmp_path / "a")})
+def store(migrated_store):
+    uri = f"sqlite:///{migrated_store}/mlflow.db"
+    client, exp = tracking.connect({"uri": uri, "experiment": "maglev", "artifact_location": str(migrated_store / "a")})
     return uri, client, exp
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -21,9 +22,10 @@ pytestmark = pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy i
 
 
 @pytest.fixture(scope="module")
-def sweep(tmp_path_factory):
-    """2 datasets × 2 structures into a fresh store; the study's log lines are kept."""
+def sweep(tmp_path_factory, migrated_db):
+    """2 datasets × 2 structures into an empty store; the study's log lines are kept."""
     store = tmp_path_factory.mktemp("study")
+    shutil.copyfile(migrated_db, store / "mlflow.db")
     args = ["dataset=uniform_narrow,binary_a025", "structure=arx,oe", *TINY, "study.name=tiny"]
     with study_log() as lines:
         launch(store, *args)
@@ -254,7 +256,7 @@ def test_relaunch_runs_nothing_new_and_reaps_stale_runs(sweep):
     assert len([r for r in after if r.data.tags.get("kind") == "sweep"]) == 1  # the parent is reused
 
 
-def test_failing_run_is_failed_and_the_sweep_goes_on(tmp_path, monkeypatch):
+def test_failing_run_is_failed_and_the_sweep_goes_on(migrated_store, monkeypatch):
     # orders the data cannot support are refused before the sweep (test_faults.py); an error the
     # config cannot foresee happens while estimating: here the estimator fails for order 3
     from maglev.study import job
@@ -266,8 +268,8 @@ def test_failing_run_is_failed_and_the_sweep_goes_on(tmp_path, monkeypatch):
 
     real = job.identify
     monkeypatch.setattr(job, "identify", identify)
-    launch(tmp_path, "dataset=uniform_wide", "structure=arx", "structure.order=2,3", *TINY, *LEAN)
-    client, _, runs = all_runs(tmp_path)
+    launch(migrated_store, "dataset=uniform_wide", "structure=arx", "structure.order=2,3", *TINY, *LEAN)
+    client, _, runs = all_runs(migrated_store)
     kids = {r.data.tags["orders"]: r for r in runs if r.data.tags.get("kind") == "model"}
     assert kids["[2 2 2]"].info.status == "FINISHED"
     bad = kids["[3 3 2]"]
@@ -277,19 +279,19 @@ def test_failing_run_is_failed_and_the_sweep_goes_on(tmp_path, monkeypatch):
     assert parent.info.status == "FINISHED" and parent.data.metrics["runs_failed"] == 1
 
 
-def test_single_run_without_sweep(tmp_path):
-    launch(tmp_path, "dataset=binary_a025", "structure=arx", *TINY, multirun=False)
-    _, _, runs = all_runs(tmp_path)
+def test_single_run_without_sweep(migrated_store):
+    launch(migrated_store, "dataset=binary_a025", "structure=arx", *TINY, multirun=False)
+    _, _, runs = all_runs(migrated_store)
     assert len(runs) == 1 and runs[0].info.status == "FINISHED"
     assert "mlflow.parentRunId" not in runs[0].data.tags and runs[0].data.tags["kind"] == "model"
 
 
-def test_reap_marks_only_dead_local_processes(tmp_path):
+def test_reap_marks_only_dead_local_processes(migrated_store):
     from maglev.study import tracking
     from maglev.study.reap import reap
 
-    client, exp_id = tracking.connect({"uri": f"sqlite:///{tmp_path}/m.db", "experiment": "maglev",
-                                       "artifact_location": str(tmp_path / "a")})
+    client, exp_id = tracking.connect({"uri": f"sqlite:///{migrated_store}/mlflow.db", "experiment": "maglev",
+                                       "artifact_location": str(migrated_store / "a")})
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     host = socket.gethostname()
