@@ -109,6 +109,12 @@ CONFIDENCE_Z = 2.58  # two-sided 99 % quantile of N(0, 1), as in MATLAB's resid
 TEST_LEVEL = 0.01  # significance level of the whiteness and independence tests
 
 
+def format_p(p: float) -> str:
+    """A p-value as every maglev text prints it (console, run descriptions, cautions, report): three
+    significant digits, so ``0.993`` and ``1e-06`` read alike wherever they appear."""
+    return f"{float(p):.3g}"
+
+
 @dataclass(frozen=True)
 class ResidResult:
     """Residual analysis of one model on one data set (MATLAB's ``resid``).

@@ -204,3 +204,9 @@ def test_resid_result_dict_round_trip():
         np.testing.assert_array_equal(getattr(back, key), getattr(r, key))
     assert back.whiteness_pvalue == r.whiteness_pvalue and back.independent == r.independent
     assert back.e.size == 0
+
+
+def test_p_values_read_alike_everywhere_with_three_significant_digits():
+    from maglev.validation import format_p
+
+    assert [format_p(p) for p in (0.993, 0.0123, 1e-6, 5.8e-185, 1.0)] == ["0.993", "0.0123", "1e-06", "5.8e-185", "1"]

@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-TEST_LEVEL = 0.01  # residual tests at the 1 % level (maglev.validation)
+from maglev.validation import TEST_LEVEL, format_p
+
 NAIVE_MARGIN = 1.0  # FIT points a model must gain over y(t−1) to count as adding something
 SIM_GAP = 20.0  # FIT points between one-step and simulation FIT that flag a poor input-output model
 WORKING_POINT_SHARE = 0.10  # mean input this far (as a share of the working region's width) from u* differs
@@ -42,10 +43,6 @@ class Caution:
     key: str
     text: str
     numbers: dict = field(default_factory=dict)
-
-
-def _p(x: float) -> str:
-    return f"{x:.2g}"
 
 
 def _names(rows: pd.DataFrame, limit: int = 4) -> str:
@@ -66,7 +63,7 @@ def residual_tests(table: pd.DataFrame) -> list[Caution]:
         failing = table[table[metric] < TEST_LEVEL]
         if top[metric] < TEST_LEVEL:
             out.append(Caution(f"top_fails_{test}",
-                               f"The #1 model {top['name']} fails the {test} test (p = {_p(top[metric])} < "
+                               f"The #1 model {top['name']} fails the {test} test (p = {format_p(top[metric])} < "
                                f"{TEST_LEVEL}): {what}.", {"p": float(top[metric])}))
         if len(failing):
             out.append(Caution(f"runs_fail_{test}",

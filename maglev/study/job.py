@@ -24,6 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from maglev.study import render, tracking
 from maglev.study.config import check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
+from maglev.validation import format_p
 
 log = logging.getLogger("maglev.study")
 ENTRY = "study.py"  # the runs' source in the MLflow UI
@@ -101,8 +102,8 @@ def model_description(cfg: dict, m: dict) -> str:
     h = int(cfg["study"]["val_horizon"])
     head = (f"{st['name'].upper()} {orders_string(st)} on {ds['name']}: {h}-step validation FIT "
             f"{_pct(m['val_fit'])}, {beats} the naive y(t-{h}) {_pct(m['val_fit_naive'])}; simulation FIT "
-            f"{_pct(m['val_fit_sim'])}. Residuals {white} (p = {m['whiteness_pvalue']:.3g}) and {indep} "
-            f"(p = {m['independence_pvalue']:.3g}), tests at the 1 % level.")
+            f"{_pct(m['val_fit_sim'])}. Residuals {white} (p = {format_p(m['whiteness_pvalue'])}) and {indep} "
+            f"(p = {format_p(m['independence_pvalue'])}), tests at the 1 % level.")
     stable = "stable" if m["max_pole_radius"] < 1 else "unstable"
     rows = [("structure", f"`{st['name']}` orders [{names}] = {orders_string(st)}, {int(m['n_params'])} parameters, "
                           f"{int(m['iterations'])} iterations"),
@@ -112,9 +113,9 @@ def model_description(cfg: dict, m: dict) -> str:
             ("FIT", f"validation {h}-step {_pct(m['val_fit'])}, simulation {_pct(m['val_fit_sim'])}, naive "
                     f"{_pct(m['val_fit_naive'])}; estimation {_pct(m['est_fit'])}"),
             ("criteria", f"loss {m['loss']:.4g}, FPE {m['fpe']:.4g}, AIC {m['aic']:.4g}, BIC {m['bic']:.4g}"),
-            ("residuals", f"whiteness χ² {m['whiteness_stat']:.4g} (p = {m['whiteness_pvalue']:.3g}), independence "
-                          f"χ² {m['independence_stat']:.4g} (p = {m['independence_pvalue']:.3g}); lags outside the "
-                          f"99 % band: {100 * m['resid_auto_outside']:.1f} % auto, "
+            ("residuals", f"whiteness χ² {m['whiteness_stat']:.4g} (p = {format_p(m['whiteness_pvalue'])}), "
+                          f"independence χ² {m['independence_stat']:.4g} (p = {format_p(m['independence_pvalue'])}); "
+                          f"lags outside the 99 % band: {100 * m['resid_auto_outside']:.1f} % auto, "
                           f"{100 * m['resid_cross_outside']:.1f} % cross"),
             ("G", f"largest pole radius {m['max_pole_radius']:.4f} ({stable}), static gain {m['dcgain']:.4g} cm/A, "
                   f"{int(m['near_cancellations'])} near pole-zero cancellation(s)")]

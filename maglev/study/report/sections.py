@@ -20,6 +20,7 @@ from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.figures import orders_figure, png
+from maglev.validation import format_p
 from maglev.study.ranking import validation_note
 
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
@@ -290,7 +291,7 @@ def binary_vs_uniform(ranking) -> str:
 def test_comparison(test: str, best_passes: bool, worst_passes: bool, p_best: float, p_worst: float,
                     failing_means: str) -> str:
     """One sentence comparing the best and worst model on one residual test, from the two outcomes."""
-    ps = f"p = {num(p_best, 3)} for the best, {num(p_worst, 3)} for the worst"
+    ps = f"p = {format_p(p_best)} for the best, {format_p(p_worst)} for the worst"
     if best_passes and worst_passes:
         return f"Both pass the {test} test ({ps})."
     if not best_passes and not worst_passes:
@@ -318,10 +319,10 @@ def best_vs_worst(ranking, models_all: dict, tol: float = CANCEL_TOL) -> str:
                 f"{esc(w['val_dataset'])})."]
     for who, r, res in (("best", b, rb), ("worst", w, rw)):
         findings.append(
-            f"Residuals of the {who}: {'white' if res.white else 'not white'} (p = {num(res.whiteness_pvalue, 3)}, "
+            f"Residuals of the {who}: {'white' if res.white else 'not white'} (p = {format_p(res.whiteness_pvalue)}, "
             f"{num(100 * res.auto_outside, 0)} % of autocorrelation lags outside the band), "
             f"{'independent of' if res.independent else 'correlated with'} the input "
-            f"(p = {num(res.independence_pvalue, 3)}, {num(100 * res.cross_outside, 0)} % of lags outside).")
+            f"(p = {format_p(res.independence_pvalue)}, {num(100 * res.cross_outside, 0)} % of lags outside).")
     findings += [test_comparison("whiteness", rb.white, rw.white, rb.whiteness_pvalue, rw.whiteness_pvalue,
                                  "residuals correlated in time: the noise model misses structure in the output"),
                  test_comparison("independence", rb.independent, rw.independent, rb.independence_pvalue,
