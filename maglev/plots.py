@@ -29,7 +29,7 @@ from matplotlib.ticker import LogLocator, MaxNLocator
 from .data import IOData
 from .model import PolyModel
 from .uncertainty import FrequencyBounds, frequency_bounds, root_regions, step_bounds, step_length
-from .validation import ResidResult
+from .validation import ResidResult, format_p
 
 N_FREQUENCIES = 300
 MAX_POINTS = 2000  # samples drawn per line over a whole record (≈ 2 per pixel at the figures' size)
@@ -58,9 +58,9 @@ def plot_resid(result: ResidResult, ax: Sequence[Axes] | None = None) -> Figure:
     ax_auto, ax_cross = _axes_pair(ax, "plot_resid")
     for axis, lags, corr, band, title in (
         (ax_auto, result.auto_lags, result.auto_corr, result.auto_band,
-         f"Residual autocorrelation (whiteness p = {result.whiteness_pvalue:.3g})"),
+         f"Residual autocorrelation (whiteness p = {format_p(result.whiteness_pvalue)})"),
         (ax_cross, result.cross_lags, result.cross_corr, result.cross_band,
-         f"Residual-input cross-correlation (independence p = {result.independence_pvalue:.3g})"),
+         f"Residual-input cross-correlation (independence p = {format_p(result.independence_pvalue)})"),
     ):
         axis.fill_between(lags, -band, band, color="tab:blue", alpha=0.15, label="99 % band")
         axis.plot(lags, corr, "o-", color="tab:blue", markersize=3, label="estimate")
