@@ -46,7 +46,7 @@ sys.path.insert(0, str(REPO))
 
 from omegaconf import OmegaConf  # noqa: E402
 
-from maglev.study import datasets, tracking  # noqa: E402
+from maglev.study import claims, datasets, tracking  # noqa: E402
 from maglev.study.config import config_hash, flatten  # noqa: E402
 from maglev.study.figures import RUN_DPI, png, run_figures  # noqa: E402
 from maglev.study.identify import identify, run_label  # noqa: E402
@@ -80,7 +80,7 @@ def one_run(cfg: dict, client, exp_id: str) -> dict[str, float]:
     tic = time.perf_counter()
     chash = config_hash(cfg)
     with tracking.store_lock(cfg["tracking"]["uri"]):  # the job's claim: look the config up, then create its run
-        tracking.holder(client, exp_id, chash)  # (its answer ignored: the bench repeats one config)
+        claims.holder(client, exp_id, chash)  # (its answer ignored: the bench repeats one config)
         run_id = client.create_run(exp_id, run_name=run_label(cfg), tags={"config_hash": chash}).info.run_id
     tracking.log_batch(client, run_id, params=flatten(cfg))
     tracking.log_files(client, run_id, {"model/model.json": out.model.to_json(), "resid/resid.json": out.resid,

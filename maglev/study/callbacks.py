@@ -33,7 +33,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import render, tracking
+from maglev.study import claims, render, tracking
 from maglev.study.config import StudyConfigError, check, task_config
 
 log = logging.getLogger("maglev.study")
@@ -161,8 +161,8 @@ class SweepCallback(Callback):
         sid = sweep_id(config, task)
         sweep_dir = Path(config.hydra.sweep.dir).resolve()
         name = task["study"]["name"]
-        self.lock = tracking.sweep_lock_path(task["tracking"]["uri"], sweep_dir, sid)
-        tracking.acquire_sweep(self.lock, lambda holder: log.warning(
+        self.lock = claims.sweep_lock_path(task["tracking"]["uri"], sweep_dir, sid)
+        claims.acquire_sweep(self.lock, lambda holder: log.warning(
             "sweep %r is being run by %s; waiting for it to end (its finished configs are then skipped)",
             name, holder))
         if task["tracking"]["reap"]:
@@ -221,14 +221,14 @@ class SweepCallback(Callback):
         counts: dict[str, int] = {}
         for r in kids:
             counts[r.info.status] = counts.get(r.info.status, 0) + 1
-        refs = len(tracking.referenced(self.client, self.exp_id, self.parent))
+        refs = len(claims.referenced(self.client, self.exp_id, self.parent))
         tracking.log_batch(self.client, self.parent,
                            metrics={**{f"runs_{s.lower()}": n for s, n in counts.items()}, "runs_referenced": refs})
         from maglev.study.ranking import describe_sweep
 
         describe_sweep(self.client, self.parent)  # what was swept, the top four and cautions if ranked
         self.client.set_terminated(self.parent, "FINISHED")
-        tracking.release_sweep(self.lock)
+        claims.release_sweep(self.lock)
         os.environ.pop(tracking.PARENT_ENV, None)
         os.environ.pop(tracking.SIZE_ENV, None)
         summary = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "no runs"
@@ -258,7 +258,7 @@ class SweepCallback(Callback):
         except Exception:  # noqa: BLE001 — best effort at interpreter exit
             pass
         finally:
-            tracking.release_sweep(self.lock)
+            claims.release_sweep(self.lock)
 
     def _reap_leftovers(self, timeout: float = 20.0) -> list[str]:
         """Mark KILLED the runs this sweep left RUNNING on this host: this process's own (a ranking run in

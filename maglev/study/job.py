@@ -1,7 +1,7 @@
 """One Hydra job = one MLflow run: check the config, claim it, identify, log, finish.
 
 A config error (impossible orders, missing data file, ...) raises before any run is
-created.  A job then claims its config (:func:`maglev.study.tracking.claim`): when a
+created.  A job then claims its config (:func:`maglev.study.claims.claim`): when a
 FINISHED run of the same config exists, or a live process is running it — another
 launch, or an overlapping sweep — the job creates no run, links that run to its own
 sweep (``sweep_ref.<parent>`` tag, so the sweep ranks it) and returns.  An error while
@@ -21,7 +21,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import render, tracking
+from maglev.study import claims, render, tracking
 from maglev.study.config import check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
 from maglev.validation import format_p
@@ -145,9 +145,9 @@ def run(cfg: DictConfig) -> float | None:
         return client.create_run(exp_id, run_name=run_label(plain), tags=tags).info.run_id
 
     if plain["study"]["skip_finished"]:
-        run_id, holder = tracking.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
+        run_id, holder = claims.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
         if holder is not None:
-            tracking.reference(client, holder, parent, plain["study"]["name"])
+            claims.reference(client, holder, parent, plain["study"]["name"])
             log.info("%s", skip_message(label, holder, chash))
             return None
     else:

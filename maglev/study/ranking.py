@@ -370,7 +370,7 @@ def swept(kids: list) -> str:
 def describe_sweep(client, parent_id: str) -> None:
     """Describe a sweep's parent run (Markdown): what was swept and how the runs ended; with its ranking run
     (tag ``ranking_run``) the best model, the top four with links and the cautions; also its source."""
-    from maglev.study import tracking
+    from maglev.study import claims, tracking
 
     parent = client.get_run(parent_id)
     exp, name = parent.info.experiment_id, parent.data.tags.get("sweep") or parent.info.run_name
@@ -381,7 +381,7 @@ def describe_sweep(client, parent_id: str) -> None:
     status = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "none yet"
     head = f"Sweep {name}: {len(kids)} model runs ({status})"
     head += f" of {swept(kids)}" if kids else ""
-    refs = tracking.referenced(client, exp, parent_id)  # configs other sweeps had run: ranked here too
+    refs = claims.referenced(client, exp, parent_id)  # configs other sweeps had run: ranked here too
     head += f", and {len(refs)} run(s) of other sweeps with the same configs." if refs else "."
     overrides = parent.data.tags.get("hydra.overrides", "")
     parts = [head, f"Launched with `python study.py -m {overrides}`." if overrides else ""]

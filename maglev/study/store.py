@@ -111,7 +111,7 @@ def sweep_runs(client, experiment_id: str, parent_id: str) -> tuple[list, int]:
     """The sweep's model runs — its children and the runs of other sweeps it skipped because they held
     its configs (tag ``sweep_ref.<parent>``) — with one FINISHED run per config hash (its own child
     first, then the earliest), and how many FINISHED duplicates were dropped."""
-    from maglev.study.tracking import referenced
+    from maglev.study.claims import referenced
 
     kids = client.search_runs([experiment_id], max_results=50000,
                               filter_string=f"tags.`mlflow.parentRunId` = '{parent_id}' and tags.kind = 'model'")

@@ -7,9 +7,8 @@ migrating a fresh database at once destroy it.  A tracking server is checked onc
 (``GET /health``) before anything else, and MLflow's HTTP retries are bounded
 (``tracking.max_retries``, ``tracking.timeout_s``): MLflow's defaults retry a dead server
 for about 4 minutes per call.  An unreachable server ends the sweep at once with one line
-naming the URI (:class:`TrackingUnreachable`).  A job claims its config before it creates
-its run (:func:`claim`), so that no config runs twice, whichever launches share the store.
-Runs are created with ``MlflowClient`` rather than the
+naming the URI (:class:`TrackingUnreachable`).  Which launch runs a sweep and which job runs a
+config is decided in :mod:`maglev.study.claims`.  Runs are created with ``MlflowClient`` rather than the
 fluent API, so no "active run" leaks between jobs of a reused worker process; params,
 metrics and tags go in one ``log_batch``; artifacts are written to a temporary folder
 and uploaded in one ``log_artifacts``.  The run schema is documented in docs/tracking.md.
@@ -164,96 +163,6 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
             exp_id = exp.experiment_id
         tag_experiment(client, exp_id)  # check-then-write: two processes at once would both insert
     return client, exp_id
-
-
-# ---------------------------------------------------------------------------- one launch per sweep
-_held: dict[str, object] = {}  # lock path -> open file holding the lock (this process)
-
-
-def sweep_lock_path(uri: str, sweep_dir: str | Path, sid: str) -> Path:
-    """The lock of one sweep: beside a SQLite store, else (a server) in the sweep dir."""
-    db = sqlite_path(uri)
-    return db.with_name(f"{db.name}.sweep-{sid[:16]}.lock") if db else Path(sweep_dir) / f".sweep-{sid[:16]}.lock"
-
-
-def acquire_sweep(path: Path, waiting) -> None:
-    """Hold an exclusive lock on ``path`` until :func:`release_sweep` or the end of the process (kill -9
-    included).  While another process holds it, call ``waiting(holder)`` once and wait."""
-    if str(path) in _held:  # an earlier launch in this process died without releasing it
-        return
-    try:
-        import fcntl
-    except ImportError:  # Windows: launches of one sweep are not serialised
-        return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fh = open(path, "a+")
-    try:
-        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        fh.seek(0)
-        waiting(fh.read().strip() or "another process")
-        fcntl.flock(fh, fcntl.LOCK_EX)
-    fh.seek(0)
-    fh.truncate()
-    fh.write(f"process {os.getpid()} on {socket.gethostname()}")
-    fh.flush()
-    _held[str(path)] = fh
-
-
-def release_sweep(path: Path) -> None:
-    fh = _held.pop(str(path), None)
-    if fh is not None:
-        fh.close()  # releases the lock
-
-
-# ---------------------------------------------------------------------------- claiming a config
-REF_PREFIX = "sweep_ref."  # tag on a run that also belongs to another sweep: sweep_ref.<parent id> = sweep name
-
-
-def holder(client: MlflowClient, exp_id: str, chash: str, mine: str | None = None):
-    """The run that holds a config: a FINISHED model run with this hash, else the first-started RUNNING
-    one of a live process (``mine`` included); None when ``mine`` is that one or nothing holds it."""
-    from maglev.study.reap import stale
-
-    runs = client.search_runs([exp_id], filter_string=f"tags.config_hash = '{chash}' and tags.kind = 'model'",
-                              max_results=1000)
-    first = sorted((r for r in runs if r.info.status == "FINISHED" and r.info.run_id != mine),
-                   key=lambda r: (r.info.start_time, r.info.run_id))
-    if not first:
-        first = sorted((r for r in runs if r.info.status == "RUNNING" and not stale(r)),
-                       key=lambda r: (r.info.start_time, r.info.run_id))
-    if not first or first[0].info.run_id == mine:
-        return None
-    return first[0]
-
-
-def claim(client: MlflowClient, exp_id: str, uri: str, chash: str, create) -> tuple[str | None, object]:
-    """Create this config's run with ``create()`` unless another run holds the config: ``(run id, None)``,
-    or ``(None, the holding run)``.
-
-    On a SQLite store the look-up and the creation happen under :func:`store_lock`, so two
-    processes never both create a run of one config.  A server offers no lock: the run is
-    created, then the config looked up again, and the run deleted when an earlier one of a
-    live process holds it — two jobs starting within the same few milliseconds on clocks
-    that disagree may still both run; the ranking keeps one run per config.
-    """
-    with store_lock(uri):
-        found = holder(client, exp_id, chash)
-        if found is not None:
-            return None, found
-        run_id = create()
-    if sqlite_path(uri) is None:
-        found = holder(client, exp_id, chash, mine=run_id)
-        if found is not None:
-            client.delete_run(run_id)
-            return None, found
-    return run_id, None
-
-
-def reference(client: MlflowClient, run, parent: str | None, sweep: str) -> None:
-    """Make ``run`` (of another sweep, or none) part of the sweep ``parent`` as well (``sweep_ref.<parent>``)."""
-    if parent and run.data.tags.get("mlflow.parentRunId") != parent:
-        client.set_tag(run.info.run_id, f"{REF_PREFIX}{parent}", sweep or "sweep")
 
 
 # ---------------------------------------------------------------------------- how the UI shows the study
@@ -428,12 +337,6 @@ def sweep_parent(sweep_dir: str | None) -> str | None:
 
 def children(client: MlflowClient, exp_id: str, parent_id: str) -> list:
     return client.search_runs([exp_id], filter_string=f"tags.`mlflow.parentRunId` = '{parent_id}'",
-                              max_results=50000)
-
-
-def referenced(client: MlflowClient, exp_id: str, parent_id: str) -> list:
-    """Model runs of other sweeps that the sweep ``parent_id`` counts as its own (:func:`reference`)."""
-    return client.search_runs([exp_id], filter_string=f"tags.`{REF_PREFIX}{parent_id}` != '' and tags.kind = 'model'",
                               max_results=50000)
 
 

@@ -150,7 +150,7 @@ def dead_pid() -> str:
 
 
 def test_a_config_is_held_by_its_finished_run_else_the_first_live_running_one(store):
-    from maglev.study.tracking import claim, holder
+    from maglev.study.claims import claim, holder
 
     client, exp, uri = store
     host = socket.gethostname()
@@ -181,7 +181,7 @@ def test_a_config_is_held_by_its_finished_run_else_the_first_live_running_one(st
 
 def test_a_sweep_counts_its_references_and_one_finished_run_per_config(store):
     from maglev.study.store import sweep_runs
-    from maglev.study.tracking import reference
+    from maglev.study.claims import reference
 
     client, exp, _ = store
     parent = client.create_run(exp, tags={"kind": "sweep"}).info.run_id
