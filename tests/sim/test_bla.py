@@ -22,6 +22,7 @@ from maglev.sim.plant import Levitator
 BINARY = ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=12.0)
 NARROW = ExperimentSpec("uniform", 1.75, 2.5, duration_s=12.0)
 DEC2 = Preprocess(trim=2000, detrend=True, decimate=2)
+SEG = 2.0  # s per Welch segment: the 12 s classes here are too short for the default (bla.SEGMENT_S, 8 s)
 # a lightly damped second-order plant with a delay, on the 1 ms label: pole pair at 0.1 rad/sample
 TRUE = PolyModel(A=[1.0], B=[0.0, 0.0, 0.02, 0.015], C=[1.0], D=[1.0],
                  F=np.real(np.poly([0.97 * np.exp(0.1j), 0.97 * np.exp(-0.1j)])), nk=2, Ts=1e-3, structure="oe")
@@ -37,7 +38,7 @@ def _coverage(G: np.ndarray, G0: np.ndarray, std: np.ndarray, k: float) -> float
 
 
 def test_bla_of_a_linear_plant_is_its_transfer_function_within_the_standard_error():
-    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=8)
+    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=8, segment_s=SEG)
     band = est.w > 0
     G0 = TRUE.freqresp(est.w[band])
     # with SE² from the spread of M = 8 realisations, |Ĝ - G|²/SE² ~ F(2, 14):
@@ -87,13 +88,13 @@ def test_one_record_frequency_response_error_matches_its_coherence_based_standar
 @pytest.fixture(scope="module")
 def binary_bla(tmp_path_factory) -> BLA:
     """The default levitator's BLA for binary α .25 1.5-4 A, 12 s, trimmed, detrended, decimated by 2."""
-    return bla(BINARY, Levitator(zero_at_10=True), preprocess=DEC2, realisations=6,
+    return bla(BINARY, Levitator(zero_at_10=True), preprocess=DEC2, realisations=6, segment_s=SEG,
                cache=tmp_path_factory.mktemp("bla"))
 
 
 def test_levitator_bla_depends_on_the_input_class(binary_bla):
     big = binary_bla
-    small = bla(NARROW, Levitator(zero_at_10=True), preprocess=DEC2, realisations=3, cache=False)
+    small = bla(NARROW, Levitator(zero_at_10=True), preprocess=DEC2, realisations=3, segment_s=SEG, cache=False)
     assert big.Ts == small.Ts == 2e-3
     band = (big.w > 30) & (big.w < 300)  # rad/s: around both resonances
     z = np.abs(big.G - small.G)[band] / np.hypot(big.std, small.std)[band]
@@ -129,7 +130,7 @@ def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_
 def test_cache_round_trip_and_key(tmp_path, monkeypatch):
     lev = Levitator(zero_at_10=True)
     spec = replace(NARROW, duration_s=6.0)
-    first = bla(spec, lev, preprocess=DEC2, realisations=2, cache=tmp_path)
+    first = bla(spec, lev, preprocess=DEC2, realisations=2, segment_s=SEG, cache=tmp_path)
     assert len(list(tmp_path.glob("*.npz"))) == 1
     bla_mod._MEMORY.clear()
 
@@ -137,22 +138,24 @@ def test_cache_round_trip_and_key(tmp_path, monkeypatch):
         raise AssertionError("estimated again instead of read from the cache")
 
     monkeypatch.setattr(bla_mod, "_estimate", no_simulation)
-    again = bla(replace(spec, seed=99), lev, preprocess=DEC2, realisations=2, cache=tmp_path)  # seed: not a key
+    again = bla(replace(spec, seed=99), lev, preprocess=DEC2, realisations=2, segment_s=SEG, cache=tmp_path)  # seed: not a key
     assert isinstance(again, BLA) and again.spec.seed == 99
     for name in ("w", "G", "std", "coherence", "Suu", "Syy"):
         np.testing.assert_array_equal(getattr(again, name), getattr(first, name))
     assert (again.fit_ceiling, again.preprocess, again.Ts) == (first.fit_ceiling, first.preprocess, first.Ts)
-    key = bla_mod.cache_key(spec, lev, DEC2, 2, bla_mod.SEGMENT_S)
-    assert key != bla_mod.cache_key(spec, lev.with_params(coulomb_upper=0.04), DEC2, 2, bla_mod.SEGMENT_S)
+    key = bla_mod.cache_key(spec, lev, DEC2, 2, SEG)
+    assert key != bla_mod.cache_key(spec, lev.with_params(coulomb_upper=0.04), DEC2, 2, SEG)
     assert key != bla_mod.cache_key(replace(spec, alpha=None, kind="uniform", low=1.5), lev, DEC2, 2,
-                                    bla_mod.SEGMENT_S)
-    assert key != bla_mod.cache_key(spec, lev, replace(DEC2, decimate=1), 2, bla_mod.SEGMENT_S)
+                                    SEG)
+    assert key != bla_mod.cache_key(spec, lev, replace(DEC2, decimate=1), 2, SEG)
+    assert key != bla_mod.cache_key(spec, lev, DEC2, 2, bla_mod.SEGMENT_S)  # the segment length is a key
 
 
 def test_bad_input_is_named():
     with pytest.raises(ValueError, match="stationary random input class"):
         bla(ExperimentSpec("step", 2.5, 3.0), _linear_plant)
-    est = bla(replace(BINARY, duration_s=6.0), _linear_plant, preprocess=Preprocess(), realisations=2)
+    est = bla(replace(BINARY, duration_s=6.0), _linear_plant, preprocess=Preprocess(), realisations=2,
+              segment_s=SEG)
     with pytest.raises(ValueError, match="freqresp"):
         weighted_distance(np.ones(3), est)
     with pytest.raises(ValueError, match="realisations must be >= 2"):
