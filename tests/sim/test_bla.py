@@ -6,13 +6,15 @@ E|y - G u|² = ‖G_BLA - G‖²_Φu + var(y_s) holds for any linear G; the cach
 what it stored.  Short classes and few realisations keep the tests fast.
 """
 
+import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from maglev.sim import bla as bla_mod
-from maglev.sim.bla import BLA, Preprocess, bla, frequency_response, relative_distance, weighted_distance
+from maglev.sim.bla import (BLA, Preprocess, bla, frequency_response, record_distance, relative_distance,
+                            validation_records, weighted_distance)
 from maglev.data import IOData
 from maglev.estimation import arx, oe
 from maglev.sim.labdata import ExperimentSpec, input_signal
@@ -74,6 +76,30 @@ def test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies():
         assert relative_distance(model.freqresp, ref) == pytest.approx(exact, rel=0.01)  # flat Φu: the same
         on_grid = weighted_distance(model.freqresp(w), ref)
         assert on_grid > (1 + grid_error) * exact if grid_error else on_grid == pytest.approx(exact, rel=0.01)
+
+
+def test_on_finite_records_the_fitted_initial_state_takes_up_an_error_slower_than_the_record():
+    """record_distance: as a validation simulation FIT with a fitted initial state sees G.  Errors of G at
+    all frequencies count as in the stationary distance; a slow pole-zero pair (time constant 1.7 s) is an
+    error the model's own slow mode, started from a fitted state, absorbs — the more, the shorter the record."""
+    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=16, segment_s=SEG)
+
+    def on_records(model, n):
+        return record_distance(lambda d: model.predict(d, math.inf, "estimate"), est, n)
+
+    def with_pair(zero, pole):
+        return PolyModel(A=[1.0], B=np.convolve(TRUE.B, [1.0, -zero]), C=[1.0], D=[1.0],
+                         F=np.convolve(TRUE.F, [1.0, -pole]), nk=2, Ts=1e-3, structure="oe")
+
+    scaled = PolyModel(A=[1.0], B=1.1 * np.asarray(TRUE.B), C=[1.0], D=[1.0], F=TRUE.F, nk=2, Ts=1e-3, structure="oe")
+    for model in (scaled, with_pair(0.99, 0.95)):  # errors of G well inside the record's time scale
+        assert on_records(model, 5000) == pytest.approx(weighted_distance(model.freqresp, est), rel=0.03)
+    slow = with_pair(0.99996, 0.9994)
+    short, middle, long = (on_records(slow, n) for n in (1000, 2000, 5000))
+    assert short < middle < long < weighted_distance(slow.freqresp, est)
+    assert short < 0.6 * weighted_distance(slow.freqresp, est)
+    recs = validation_records(est, 1000, records=3)
+    assert [d.N for d in recs] == [1000] * 3 and on_records(TRUE, 1000) < 0.03  # the truth itself: the BLA's error
 
 
 def test_one_record_frequency_response_error_matches_its_coherence_based_standard_error():
