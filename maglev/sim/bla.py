@@ -297,8 +297,9 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
     (seeds ``SEED0 + m``, the spec's length and Ts) is preprocessed by ``preprocess``
     (default: the study's trim 2000, detrend, no decimation), so G is on the time base
     of models identified with those settings.  ``segment_s``: the Welch segment (default
-    :data:`SEGMENT_S`); at most half a preprocessed record, so that var(y_s) is measured on at least half of each.  ``cache``: True (memory and
-    :func:`cache_dir`), a directory, or False.
+    :data:`SEGMENT_S`), at most half a preprocessed record so that var(y_s) is measured on
+    at least half of each.  ``cache``: True (memory and :func:`cache_dir`), a directory,
+    or False.
     """
     if spec.kind not in ("uniform", "binary"):
         raise ValueError(f"the BLA needs a stationary random input class (kind 'uniform' or 'binary'), "
