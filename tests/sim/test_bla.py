@@ -6,13 +6,15 @@ E|y - G u|² = ‖G_BLA - G‖²_Φu + var(y_s) holds for any linear G; the cach
 what it stored.  Short classes and few realisations keep the tests fast.
 """
 
+import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from maglev.sim import bla as bla_mod
-from maglev.sim.bla import BLA, Preprocess, bla, frequency_response, relative_distance, weighted_distance
+from maglev.sim.bla import (BLA, Preprocess, bla, frequency_response, record_distance, relative_distance,
+                            validation_records, weighted_distance)
 from maglev.data import IOData
 from maglev.estimation import arx, oe
 from maglev.sim.labdata import ExperimentSpec, input_signal
@@ -22,6 +24,7 @@ from maglev.sim.plant import Levitator
 BINARY = ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=12.0)
 NARROW = ExperimentSpec("uniform", 1.75, 2.5, duration_s=12.0)
 DEC2 = Preprocess(trim=2000, detrend=True, decimate=2)
+SEG = 2.0  # s per Welch segment: the 12 s classes here are too short for the default (bla.SEGMENT_S, 8 s)
 # a lightly damped second-order plant with a delay, on the 1 ms label: pole pair at 0.1 rad/sample
 TRUE = PolyModel(A=[1.0], B=[0.0, 0.0, 0.02, 0.015], C=[1.0], D=[1.0],
                  F=np.real(np.poly([0.97 * np.exp(0.1j), 0.97 * np.exp(-0.1j)])), nk=2, Ts=1e-3, structure="oe")
@@ -37,7 +40,7 @@ def _coverage(G: np.ndarray, G0: np.ndarray, std: np.ndarray, k: float) -> float
 
 
 def test_bla_of_a_linear_plant_is_its_transfer_function_within_the_standard_error():
-    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=8)
+    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=8, segment_s=SEG)
     band = est.w > 0
     G0 = TRUE.freqresp(est.w[band])
     # with SE² from the spread of M = 8 realisations, |Ĝ - G|²/SE² ~ F(2, 14):
@@ -75,6 +78,30 @@ def test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies():
         assert on_grid > (1 + grid_error) * exact if grid_error else on_grid == pytest.approx(exact, rel=0.01)
 
 
+def test_on_finite_records_the_fitted_initial_state_takes_up_an_error_slower_than_the_record():
+    """record_distance: as a validation simulation FIT with a fitted initial state sees G.  Errors of G at
+    all frequencies count as in the stationary distance; a slow pole-zero pair (time constant 1.7 s) is an
+    error the model's own slow mode, started from a fitted state, absorbs — the more, the shorter the record."""
+    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=16, segment_s=SEG)
+
+    def on_records(model, n):
+        return record_distance(lambda d: model.predict(d, math.inf, "estimate"), est, n)
+
+    def with_pair(zero, pole):
+        return PolyModel(A=[1.0], B=np.convolve(TRUE.B, [1.0, -zero]), C=[1.0], D=[1.0],
+                         F=np.convolve(TRUE.F, [1.0, -pole]), nk=2, Ts=1e-3, structure="oe")
+
+    scaled = PolyModel(A=[1.0], B=1.1 * np.asarray(TRUE.B), C=[1.0], D=[1.0], F=TRUE.F, nk=2, Ts=1e-3, structure="oe")
+    for model in (scaled, with_pair(0.99, 0.95)):  # errors of G well inside the record's time scale
+        assert on_records(model, 5000) == pytest.approx(weighted_distance(model.freqresp, est), rel=0.03)
+    slow = with_pair(0.99996, 0.9994)
+    short, middle, long = (on_records(slow, n) for n in (1000, 2000, 5000))
+    assert short < middle < long < weighted_distance(slow.freqresp, est)
+    assert short < 0.6 * weighted_distance(slow.freqresp, est)
+    recs = validation_records(est, 1000, records=3)
+    assert [d.N for d in recs] == [1000] * 3 and on_records(TRUE, 1000) < 0.03  # the truth itself: the BLA's error
+
+
 def test_one_record_frequency_response_error_matches_its_coherence_based_standard_error():
     u = input_signal(replace(BINARY, seed=3, duration_s=40.0))
     frf = frequency_response(IOData(u=u, y=_linear_plant(u, 4), Ts=1e-3).trim(2000).detrend())
@@ -87,13 +114,13 @@ def test_one_record_frequency_response_error_matches_its_coherence_based_standar
 @pytest.fixture(scope="module")
 def binary_bla(tmp_path_factory) -> BLA:
     """The default levitator's BLA for binary α .25 1.5-4 A, 12 s, trimmed, detrended, decimated by 2."""
-    return bla(BINARY, Levitator(zero_at_10=True), preprocess=DEC2, realisations=6,
+    return bla(BINARY, Levitator(zero_at_10=True), preprocess=DEC2, realisations=6, segment_s=SEG,
                cache=tmp_path_factory.mktemp("bla"))
 
 
 def test_levitator_bla_depends_on_the_input_class(binary_bla):
     big = binary_bla
-    small = bla(NARROW, Levitator(zero_at_10=True), preprocess=DEC2, realisations=3, cache=False)
+    small = bla(NARROW, Levitator(zero_at_10=True), preprocess=DEC2, realisations=3, segment_s=SEG, cache=False)
     assert big.Ts == small.Ts == 2e-3
     band = (big.w > 30) & (big.w < 300)  # rad/s: around both resonances
     z = np.abs(big.G - small.G)[band] / np.hypot(big.std, small.std)[band]
@@ -129,7 +156,7 @@ def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_
 def test_cache_round_trip_and_key(tmp_path, monkeypatch):
     lev = Levitator(zero_at_10=True)
     spec = replace(NARROW, duration_s=6.0)
-    first = bla(spec, lev, preprocess=DEC2, realisations=2, cache=tmp_path)
+    first = bla(spec, lev, preprocess=DEC2, realisations=2, segment_s=SEG, cache=tmp_path)
     assert len(list(tmp_path.glob("*.npz"))) == 1
     bla_mod._MEMORY.clear()
 
@@ -137,22 +164,24 @@ def test_cache_round_trip_and_key(tmp_path, monkeypatch):
         raise AssertionError("estimated again instead of read from the cache")
 
     monkeypatch.setattr(bla_mod, "_estimate", no_simulation)
-    again = bla(replace(spec, seed=99), lev, preprocess=DEC2, realisations=2, cache=tmp_path)  # seed: not a key
+    again = bla(replace(spec, seed=99), lev, preprocess=DEC2, realisations=2, segment_s=SEG, cache=tmp_path)  # seed: not a key
     assert isinstance(again, BLA) and again.spec.seed == 99
     for name in ("w", "G", "std", "coherence", "Suu", "Syy"):
         np.testing.assert_array_equal(getattr(again, name), getattr(first, name))
     assert (again.fit_ceiling, again.preprocess, again.Ts) == (first.fit_ceiling, first.preprocess, first.Ts)
-    key = bla_mod.cache_key(spec, lev, DEC2, 2, bla_mod.SEGMENT_S)
-    assert key != bla_mod.cache_key(spec, lev.with_params(coulomb_upper=0.04), DEC2, 2, bla_mod.SEGMENT_S)
+    key = bla_mod.cache_key(spec, lev, DEC2, 2, SEG)
+    assert key != bla_mod.cache_key(spec, lev.with_params(coulomb_upper=0.04), DEC2, 2, SEG)
     assert key != bla_mod.cache_key(replace(spec, alpha=None, kind="uniform", low=1.5), lev, DEC2, 2,
-                                    bla_mod.SEGMENT_S)
-    assert key != bla_mod.cache_key(spec, lev, replace(DEC2, decimate=1), 2, bla_mod.SEGMENT_S)
+                                    SEG)
+    assert key != bla_mod.cache_key(spec, lev, replace(DEC2, decimate=1), 2, SEG)
+    assert key != bla_mod.cache_key(spec, lev, DEC2, 2, bla_mod.SEGMENT_S)  # the segment length is a key
 
 
 def test_bad_input_is_named():
     with pytest.raises(ValueError, match="stationary random input class"):
         bla(ExperimentSpec("step", 2.5, 3.0), _linear_plant)
-    est = bla(replace(BINARY, duration_s=6.0), _linear_plant, preprocess=Preprocess(), realisations=2)
+    est = bla(replace(BINARY, duration_s=6.0), _linear_plant, preprocess=Preprocess(), realisations=2,
+              segment_s=SEG)
     with pytest.raises(ValueError, match="freqresp"):
         weighted_distance(np.ones(3), est)
     with pytest.raises(ValueError, match="realisations must be >= 2"):

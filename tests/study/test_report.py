@@ -20,6 +20,7 @@ import re
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
@@ -121,9 +122,12 @@ def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
         b = dataset_bla(run_config(client, run.info.run_id)["dataset"])
         db = b.magnitude_db[b.w > 0]
         sentence = re.search(f"Best linear approximation for {name} .*?simulation FIT ceiling [^%]*%", prep).group(0)
-        # a resonance is claimed exactly when |G| rises above its low-frequency value, and by the stated amount
-        assert ("no resonance peak" not in sentence) == (db.max() > db[0]), sentence
-        if db.max() > db[0]:
+        # a resonance is claimed exactly when |G| rises above its low-frequency value by more than two standard
+        # errors, and by the stated amount
+        mag, sd = np.abs(b.G[b.w > 0]), b.std[b.w > 0] / np.sqrt(2)
+        rises = mag.max() - mag[0] > 2 * np.hypot(sd[np.argmax(mag)], sd[0])
+        assert ("no resonance peak" not in sentence) == rises, sentence
+        if rises:
             assert f"({db.max() - db[0]:.1f} dB above the low-frequency gain)" in sentence
     [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
     assert sections["cautions"].count("<li>") == int(ranking.data.metrics["n_cautions"])
@@ -197,20 +201,17 @@ def test_every_simulated_run_logs_the_bla_distance_the_naive_baseline_and_the_si
         assert len(runs) == 8, ds  # 4 structures × 2 orders
         for r in runs:
             m = r.data.metrics
-            for key in ("g_bla_err", "g_bla_err_unweighted", "bla_fit_ceiling", "val_fit_naive", "val_fit_sim"):
+            for key in ("g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "val_fit_naive", "val_fit_sim"):
                 assert math.isfinite(m[key]), (r.info.run_name, key)
             assert 0 < m["g_bla_err"] < 1.5 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
 
 
-NARROW = ("not met on uniform_narrow (Spearman +0.64): its eight models are 0.10-0.21 from the BLA (stationary "
-          "simulation FITs within 1.7 points); the OE models' slow pole-zero pair costs them stationary accuracy "
-          "(0.21) but, with the initial state fitted, they simulate 11 s records of the class best, this one and on "
-          "average 12 held-out ones (README, 'Is the best linear approximation the truth?')")
-
-
-@pytest.mark.parametrize("dataset", ["binary_a025", "uniform_wide",
-                                     pytest.param("uniform_narrow", marks=pytest.mark.xfail(strict=True, reason=NARROW))])
+@pytest.mark.parametrize("dataset", DATASETS)
 def test_runs_closer_to_the_bla_simulate_the_validation_data_better(lab_sweep, dataset):
+    """g_bla_err is measured as the validation FIT sees G: on records of the validation length, initial state fitted.
+    On uniform_narrow the stationary distance (g_bla_err_stationary) ranks the OE models' slow pole-zero pair, an
+    error on time scales longer than the 11 s record, as their largest (README, 'Is the best linear approximation
+    the truth?')."""
     store, _, _ = lab_sweep
     runs = model_runs(store)[dataset]
     rho = spearmanr([r.data.metrics["g_bla_err"] for r in runs], [r.data.metrics["val_fit_sim"] for r in runs])

@@ -19,8 +19,12 @@ from maglev.study.reproduce import recompute, same
 FIXTURES = sorted((Path(__file__).parent / "fixtures" / "before_layout").glob("*.json"))
 # metrics redefined on purpose after the fixtures were logged: they measure the same thing, so stay close
 REDEFINED = {  # metric: relative tolerance
-    "g_bla_err": 0.05,  # integrated finer than the BLA's Welch frequencies (README, "Is the best linear approximation the truth?")
+    # integrated finer than the BLA's Welch frequencies, then measured on records of the validation length with
+    # the initial state fitted, against a BLA of 256 realisations (README, "Is the best linear approximation the
+    # truth?"): OE 0.215 → 0.203 on this 1.75 s validation record, ARMAX 0.643 → 0.627
+    "g_bla_err": 0.10,
     "g_bla_err_unweighted": 0.05,
+    "bla_fit_ceiling": 0.01,  # the BLA of 256 realisations instead of 16, segments of half this 3.5 s record: 58.19 → 58.24
 }
 
 

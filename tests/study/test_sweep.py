@@ -55,7 +55,7 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
         for key in ("val_fit", "val_fit_sim", "est_fit", "loss", "fpe", "aic", "bic", "n_params",
                     "fit_seconds", "iterations", "whiteness_pvalue", "whiteness_pass",
                     "independence_pvalue", "independence_pass", "g_h2_rel_err", "dcgain_rel_err",
-                    "val_fit_naive", "g_bla_err", "g_bla_err_unweighted", "bla_fit_ceiling", "near_cancellations"):
+                    "val_fit_naive", "g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "near_cancellations"):
             assert key in m, key
         # Output error on small white noise (uniform_narrow, U(1.75, 2.5)) predicts poorly, as on the
         # real rig (white_noise_2): dry friction holds small motions back. Models with a noise model,
