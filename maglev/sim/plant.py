@@ -349,6 +349,26 @@ class Levitator:
                       meta={"z": z, "h": h, "current": cur, "seed": seed,
                             "physical_time": self.physical_time, "params": asdict(p)})
 
+    def simulate_batch(self, U: np.ndarray, Ts: float = LABEL_TS, *, start: float = 0.0,
+                       substeps: int | None = None) -> np.ndarray:
+        """Noise-free readings for each row of ``U`` (commands [A], one record per row): the
+        outputs ``simulate(row, Ts, noise=False, start=start).y`` would give, all records
+        integrated at once (numpy over the rows; equal to within rounding).  For the
+        many realisations a best linear approximation averages over (:mod:`maglev.sim.bla`).
+        """
+        Ts = _checked_ts(Ts)
+        U = _checked_command(np.atleast_2d(np.asarray(U, dtype=float)), "U")
+        if U.ndim != 2 or U.shape[1] < 10:
+            raise ValueError(f"U must be records x samples with at least 10 samples, got shape {U.shape}")
+        p = self.params
+        dt = Ts * self.time_scale()
+        if substeps is None:
+            substeps = max(1, math.ceil(dt / 1.7e-3))
+        eq0 = self.equilibrium(start)
+        nd = self.delay_samples(Ts)
+        cur = np.concatenate([np.full((U.shape[0], nd), eq0.current), self.current(U)], axis=1)[:, : U.shape[1]]
+        return p.y_off + _integrate_batch(p, cur, dt, substeps, eq0.z, eq0.h)
+
     def _sensor_noise(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
         """White noise plus an AR(2) line at the mains ripple aliased by the sample period ``dt``."""
         p = self.params
@@ -460,6 +480,67 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
             if h > top:
                 h, vh = top, 0.0
     return np.array(zs), np.array(hs_out)
+
+
+def _velocity_step_batch(hk: float, gamma: float, fc: float, fs: float, ivs2: float, ivc: float,
+                         smooth: bool):
+    """:func:`_velocity_step` on arrays of velocities and forces (one element per record)."""
+    damp = 1.0 + hk * gamma
+    if fc + fs <= 0.0:
+        return lambda v, a: (v + hk * a) / damp
+    if smooth:
+        def step(v: np.ndarray, a: np.ndarray) -> np.ndarray:
+            e = np.exp(-v * v * ivs2) if fs else 0.0
+            th = np.tanh(v * ivc)
+            level = fc + fs * e
+            slope = level * (1.0 - th * th) * ivc + gamma - 2.0 * fs * e * v * ivs2 * th
+            return v + hk * (a - level * th - gamma * v) / (1.0 + hk * np.maximum(slope, 0.0))
+        return step
+
+    def stick_slip(v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        band = hk * (fc + fs * np.exp(-v * v * ivs2)) / damp
+        v = (v + hk * a) / damp
+        return np.where(v > band, v - band, np.where(v < -band, v + band, 0.0))
+    return stick_slip
+
+
+def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: int, z0: float,
+                     h0: float) -> np.ndarray:
+    """:func:`_integrate` without the force disturbance, for every row of ``cur`` at once; returns
+    the upper magnet's heights (records x samples).  Each substep costs a few dozen numpy
+    operations on the rows, so a batch of a few hundred records runs ≈ 10x faster than a loop."""
+    hs = dt / substeps
+    k = _CM / p.m
+    w = p.m * p.g
+    ia = 1.0 / p.a
+    n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
+    ivc = 1.0 / p.v_creep if p.v_creep > 0.0 else 0.0
+    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
+    hk = hs * k
+    step_l = _velocity_step_batch(hk, p.gamma_lower / _CM, p.coulomb_lower, p.stiction_lower, ivs2, ivc,
+                                  p.v_creep > 0.0)
+    step_u = _velocity_step_batch(hk, p.gamma_upper / _CM, p.coulomb_upper, p.stiction_upper, ivs2, ivc,
+                                  p.v_creep > 0.0)
+    rows = cur.shape[0]
+    z, h = np.full(rows, z0), np.full(rows, h0)
+    vz, vh = np.zeros(rows), np.zeros(rows)
+    out = np.empty_like(cur)
+    for i in range(cur.shape[1]):
+        out[:, i] = h
+        ci = cur[:, i] * ia
+        for _ in range(substeps):
+            fm = c / (h - z + d) ** 4
+            vz = step_l(vz, ci / (z + b) ** n - fm - w)
+            vh = step_u(vh, fm - kap * ci / (h + b) ** n - w)
+            z = z + hs * vz
+            h = h + hs * vh
+            seated = z < 0.0
+            if seated.any():
+                z, vz = np.where(seated, 0.0, z), np.where(seated, 0.0, vz)
+            stopped = h > p.h_top
+            if stopped.any():
+                h, vh = np.where(stopped, p.h_top, h), np.where(stopped, 0.0, vh)
+    return out
 
 
 def _checked_command(u: float | np.ndarray, name: str) -> np.ndarray:

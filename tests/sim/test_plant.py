@@ -57,6 +57,22 @@ def test_seat_and_top_stop_hold():
     assert data.meta["h"][-1] == 8.6 and capped.equilibrium(3.5).upper_at_top
 
 
+@pytest.mark.parametrize("law", ["smooth", "set-valued", "viscous"])
+def test_batch_simulation_is_the_loop_over_records(law):
+    """``simulate_batch`` (the BLA's many realisations at once) gives each record's noise-free reading,
+    for each friction law, with records that stay seated, reach the top stop, or hop about."""
+    lev = {"smooth": Levitator(zero_at_10=True),
+           "set-valued": Levitator().with_params(v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05),
+           "viscous": Levitator().with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0,
+                                              stiction_upper=0.0)}[law].with_params(h_top=9.0)
+    U = np.array([random_binary(1500, 0.1, 0.0, 1.0, seed=1), random_binary(1500, 0.02, 0.0, 4.0, seed=2),
+                  np.full(1500, 4.5), random_binary(1500, 0.25, 1.5, 4.0, seed=3)])
+    loop = np.array([lev.simulate(u, Ts=0.002, noise=False, start=1.0).y for u in U])
+    batch = lev.simulate_batch(U, Ts=0.002, start=1.0)
+    assert loop[2].max() == lev.params.y_off + 9.0  # the top stop is reached
+    np.testing.assert_allclose(batch, loop, rtol=0, atol=1e-9)
+
+
 def test_logging_quirk_zero_at_10():
     quirky = Levitator(zero_at_10=True)
     assert quirky.equilibrium(10.0).y == pytest.approx(quirky.equilibrium(0.0).y)
