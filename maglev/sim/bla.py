@@ -30,6 +30,7 @@ number of averaged segments.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -46,7 +47,7 @@ from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.sim.plant import Levitator
 
 __all__ = ["Preprocess", "FrequencyResponse", "BLA", "bla", "frequency_response", "weighted_distance",
-           "relative_distance", "record_distance", "validation_records", "SEGMENT_S", "RECORD_SEGMENT_S", "REALISATIONS"]
+           "relative_distance", "record_distance", "validation_records", "is_cached", "SEGMENT_S", "RECORD_SEGMENT_S", "REALISATIONS"]
 
 VERSION = 2  # bump when the estimator changes: old disk-cache entries are then ignored
 # The defaults make the BLA accurate enough to rank models 0.1-0.2 from it (docs/simulator.md, "Choices"):
@@ -271,6 +272,34 @@ def cache_key(spec: ExperimentSpec, plant: Levitator, preprocess: Preprocess, re
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
+def is_cached(spec: ExperimentSpec, plant: Levitator | None = None, *, preprocess: Preprocess | None = None,
+              realisations: int = REALISATIONS, segment_s: float = SEGMENT_S) -> bool:
+    """Whether :func:`bla` with these arguments (and ``cache=True``) finds its estimate on disk."""
+    plant = Levitator(zero_at_10=True) if plant is None else plant
+    key = cache_key(spec, plant, preprocess or Preprocess(), realisations, segment_s)
+    return (cache_dir() / f"{key}.npz").is_file()
+
+
+@contextlib.contextmanager
+def _one_estimator(path: Path | None):
+    """Hold ``<entry>.lock`` beside a cache entry while estimating it: another process estimating the same
+    entry (a sweep's background, :func:`maglev.study.datasets.prepare_blas`, or a parallel job) finishes
+    first and this one then loads it.  Without a lock (no ``fcntl``, an unwritable directory) each estimates."""
+    try:
+        import fcntl
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fh = open(path.with_suffix(".lock"), "a")
+    except (ImportError, OSError, AttributeError):  # AttributeError: path None (no disk cache)
+        yield
+        return
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        yield
+    finally:
+        fh.close()  # releases the lock
+
+
 def _save(path: Path, est: BLA) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = {"Ts": est.Ts, "averages": est.averages, "spec": asdict(est.spec),
@@ -321,15 +350,17 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
     path = (cache_dir() if cache is True else Path(cache)) / f"{key}.npz" if cache is not False else None
     est = _load(path) if path is not None and path.is_file() else None
     if est is None:
-        if realisations >= BATCH_FROM:
-            est = _estimate(spec, None, preprocess, realisations, segment_s, batch=_batch_of(plant, spec.Ts))
-        else:
-            est = _estimate(spec, _system_of(plant, spec.Ts), preprocess, realisations, segment_s)
-        if path is not None:
-            try:
-                _save(path, est)
-            except OSError:  # an unwritable cache directory only costs the next run the estimate
-                pass
+        with _one_estimator(path):
+            est = _load(path) if path is not None and path.is_file() else None  # made while this one waited
+            if est is None:
+                est = _estimate(spec, None, preprocess, realisations, segment_s, batch=_batch_of(plant, spec.Ts)) \
+                    if realisations >= BATCH_FROM else \
+                    _estimate(spec, _system_of(plant, spec.Ts), preprocess, realisations, segment_s)
+                if path is not None:
+                    try:
+                        _save(path, est)
+                    except OSError:  # an unwritable cache directory only costs the next run the estimate
+                        pass
     if cache is not False:
         _MEMORY[key] = est
     return replace(est, spec=spec)

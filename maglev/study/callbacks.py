@@ -33,7 +33,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, render, tracking
+from maglev.study import claims, datasets, render, tracking
 from maglev.study.config import StudyConfigError, check, task_config
 
 log = logging.getLogger("maglev.study")
@@ -98,9 +98,9 @@ def sweep_jobs(config: DictConfig) -> list[list[str]] | None:
     return BasicSweeper.split_arguments(OverridesParser.create().parse_overrides(specs), None)[0]
 
 
-def check_sweep(config: DictConfig) -> int:
+def check_sweep(config: DictConfig) -> list[dict]:
     """Compose and :func:`~maglev.study.config.check` every job of the sweep; the first impossible one
-    raises :class:`SweepRefused` naming the job and the key.  Returns the number of jobs checked.
+    raises :class:`SweepRefused` naming the job and the key.  Returns the jobs' configs (plain, resolved).
 
     Composing a job costs Hydra ≈ 0.2 s, so each distinct choice of config groups
     (``dataset=…``, ``structure=…``) is composed once and plain value overrides
@@ -111,10 +111,11 @@ def check_sweep(config: DictConfig) -> int:
 
     jobs = sweep_jobs(config)
     if not jobs or not GlobalHydra.instance().is_initialized():
-        return 0
+        return []
     loader = GlobalHydra.instance().config_loader()
     parser = OverridesParser.create()
     composed: dict[tuple[str, ...], DictConfig] = {}
+    checked: list[dict] = []
     for overrides in jobs:
         parsed = parser.parse_overrides(list(overrides))
         plain = [o for o in parsed if not (o.is_add() or o.is_delete() or o.is_force_add() or o.package
@@ -127,11 +128,13 @@ def check_sweep(config: DictConfig) -> int:
             cfg = composed[base].copy()
             for o in plain:
                 OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
-            check(OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True))
+            job = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True)
+            check(job)
+            checked.append(job)
         except StudyConfigError as exc:
             shown = " ".join(o for o in overrides if not o.lstrip("+~").startswith(("tracking", "hydra")))
             raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
-    return len(jobs)
+    return checked
 
 
 class SweepCallback(Callback):
@@ -152,8 +155,9 @@ class SweepCallback(Callback):
     def _start(self, config: DictConfig) -> None:
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
         task = task_config(config)
-        check_sweep(config)
+        jobs = check_sweep(config)
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
+        datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
             render.start()  # the renderer's process imports while the store and the lab steps are made
         client, exp_id = tracking.connect(task["tracking"])

@@ -72,14 +72,52 @@ def sim_spec(ds: dict):
                           duration_s=float(ds["duration_s"]), seed=int(ds["seed"]), Ts=float(ds["Ts"]))
 
 
+def _bla_preprocess(ds: dict):
+    from maglev.sim.bla import Preprocess
+
+    pp = ds["preprocess"]
+    return Preprocess(trim=int(pp["trim"]), detrend=bool(pp["detrend"]), decimate=int(pp["decimate"]))
+
+
 def dataset_bla(ds: dict):
     """The simulator's best linear approximation for a simulated dataset's input class, on the time base
     of its models (the dataset's trim, detrend and decimation; :func:`maglev.sim.bla.bla`, cached)."""
-    from maglev.sim.bla import Preprocess, bla
+    from maglev.sim.bla import bla
 
-    pp = ds["preprocess"]
-    return bla(sim_spec(ds), preprocess=Preprocess(trim=int(pp["trim"]), detrend=bool(pp["detrend"]),
-                                                   decimate=int(pp["decimate"])))
+    return bla(sim_spec(ds), preprocess=_bla_preprocess(ds))
+
+
+def prepare_blas(configs: list[dict]):
+    """Estimate, in a background process, the BLAs that the runs of these job configs will need and the
+    disk cache lacks, in the jobs' order; returns the process (None when there is nothing to do).
+
+    A 24 s class's BLA takes ≈ 5 s, which the first run of each dataset would otherwise pay on the
+    sweep's critical path; started before the store and the lab steps, the background has the first
+    one ready by then and the others while the runs go on (a run that needs one still in the making
+    waits for it: :func:`maglev.sim.bla.bla` locks each cache entry while estimating it).
+    """
+    import json
+    import multiprocessing
+
+    from maglev.sim.bla import is_cached
+
+    wanted: dict[str, dict] = {}
+    for cfg in configs:
+        ds = cfg["dataset"]
+        if ds["source"] == "sim" and cfg["study"]["true_plant"]:
+            wanted.setdefault(json.dumps(ds, sort_keys=True), ds)
+    missing = [ds for ds in wanted.values() if not is_cached(sim_spec(ds), preprocess=_bla_preprocess(ds))]
+    if not missing:
+        return None
+    proc = multiprocessing.get_context("spawn").Process(target=_estimate_blas, args=(missing,), daemon=True,
+                                                        name="maglev-bla")
+    proc.start()
+    return proc
+
+
+def _estimate_blas(datasets: list[dict]) -> None:
+    for ds in datasets:
+        dataset_bla(ds)
 
 
 @functools.lru_cache(maxsize=16)

@@ -169,3 +169,26 @@ def test_a_mistake_in_a_launch_creates_no_run(tmp_path, overrides, needle):
     assert needle in str(err.value) + str(err.value.__cause__)
     db = tmp_path / "mlflow.db"
     assert not db.exists() or all_runs(tmp_path)[2] == []
+
+
+def test_a_sweep_estimates_the_blas_its_runs_need_in_the_background_once(monkeypatch, tmp_path):
+    """prepare_blas: one background process for the simulated datasets that log BLA distances (true_plant),
+    each class once, and nothing when the disk cache has them all."""
+    from maglev.sim.bla import is_cached
+    from maglev.study.datasets import _bla_preprocess, prepare_blas, sim_spec
+
+    monkeypatch.setenv("MAGLEV_CACHE", str(tmp_path))  # read by the spawned process too
+    def job(*overrides, short=("dataset.duration_s=4", "dataset.preprocess.trim=500")):
+        return task(cfg_for([*overrides, *short]))
+
+    narrow, binary = job("dataset=uniform_narrow"), job("dataset=binary_a025", "structure=oe")
+    lean, real = job("dataset=uniform_wide", "study.true_plant=false"), job("dataset=real_white_noise_2", short=())
+    proc = prepare_blas([narrow, binary, job("dataset=uniform_narrow", "structure=bj"), lean, real])
+    proc.join(120)
+    assert proc.exitcode == 0
+    made = {p.stem for p in (tmp_path / "bla").glob("*.npz")}
+    assert len(made) == 2  # narrow once, binary; not the lean or the real record
+    for cfg in (narrow, binary):
+        assert is_cached(sim_spec(cfg["dataset"]), preprocess=_bla_preprocess(cfg["dataset"]))
+    assert not is_cached(sim_spec(lean["dataset"]), preprocess=_bla_preprocess(lean["dataset"]))
+    assert prepare_blas([narrow, binary]) is None
