@@ -36,6 +36,7 @@ def test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones(store)
     render.submit(uri, first, inputs=None)
     render.drain()
     pid = next(iter(render._pool._processes))  # the renderer process, started by the first submit
+    os.kill(pid, signal.SIGSTOP)  # it cannot draw the second run before it dies (it would in a few ms)
     render.submit(uri, second, inputs=None)
     deadline = time.monotonic() + 10
     while not render._pending[second][1].running() and time.monotonic() < deadline:  # handed to the renderer
