@@ -175,3 +175,30 @@ def test_ranking_and_report_follow_the_residual_tests_both_ways(tmp_path, migrat
     assert clean.cautions == [] and "Cautions" not in top_text(clean)
     assert "No caution applies" in sections.cautions(clean.cautions)
     assert np.isclose(clean.table["val_fit_naive"], 80.0).all()
+
+
+@pytest.mark.parametrize("true_delay, verdict", [
+    (2, "in 3 of 3 models (median |b|/σ"),
+    (3, "in 0 of 3 models (median |b|/σ"),
+])
+def test_the_report_judges_the_swept_delay_by_the_models_first_b_coefficient(true_delay, verdict):
+    """ARX [1 2 2] fitted to systems whose response starts at lag 2 or 3: the report says whether b2 is there."""
+    from scipy import signal
+
+    from maglev.data import IOData
+    from maglev.estimation import arx
+    from maglev.study.report import sections
+
+    models = []
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        u = rng.standard_normal(2000)
+        y = signal.lfilter(np.r_[np.zeros(true_delay), 1.0, 0.5], [1.0, -0.7], u) + 0.05 * rng.standard_normal(2000)
+        models.append(arx(IOData(u, y, 1.0), na=1, nb=2, nk=2))
+    text = sections.delay_evidence(models, delayest_nk=3)
+    assert text.startswith("The swept structures use nk = 2; delayest gives 3.") and verdict in text
+    if true_delay == 2:
+        assert "the response is there at lag 2" in text and "delayest's nk = 3 (from ARX [2 2 nk]) would leave" in text
+    else:
+        assert "most models find no response at lag 2, so the swept delay is too small for the data (delayest: nk = 3)" \
+            in text

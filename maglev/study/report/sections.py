@@ -15,13 +15,13 @@ from collections.abc import Iterable
 import numpy as np
 import pandas as pd
 
-from maglev.model import CANCEL_TOL
+from maglev.model import CANCEL_TOL, PolyModel
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.figures import orders_figure, png
-from maglev.validation import format_p
 from maglev.study.ranking import validation_note
+from maglev.validation import format_p
 
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
 
@@ -172,6 +172,36 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict) -> str:
                    "<details><summary>Per model</summary>" + table(per_model) + "</details>")
 
 
+def delay_evidence(models: Iterable[PolyModel], delayest_nk: int | None = None) -> str:
+    """Whether the identified models support their delay: how many have a first B coefficient b_nk more than
+    two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given."""
+    z = []
+    for m in models:
+        se = m.std_errors
+        if se is None or m.nb == 0:
+            continue
+        j = m.parameter_names.index(f"b{m.nk}")
+        z.append(abs(m.parameters[j]) / se[j] if se[j] > 0 else math.inf)
+    if not z:
+        return ""
+    nks = sorted({m.nk for m in models if m.nb})
+    shown = ", ".join(str(k) for k in nks)
+    text = f"The swept structures use nk = {shown}" + (f"; delayest gives {delayest_nk}" if delayest_nk is not None
+                                                      else "") + ". "
+    significant = sum(v > 2 for v in z)
+    text += (f"The first B coefficient (b at lag nk) is more than two standard errors from zero in {significant} of "
+             f"{len(z)} models (median |b|/σ {num(float(np.median(z)), 1)}): ")
+    if 2 * significant > len(z):
+        text += f"the response is there at lag {shown}, as the swept delay assumes"
+        later = [k for k in nks if delayest_nk is not None and delayest_nk > k]
+        text += (f"; delayest's nk = {delayest_nk} (from ARX [2 2 nk]) would leave that coefficient out." if later
+                 else ".")
+    else:
+        text += (f"most models find no response at lag {shown}, so the swept delay is too small for the data"
+                 + (f" (delayest: nk = {delayest_nk})." if delayest_nk is not None else "."))
+    return text
+
+
 def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol: float = CANCEL_TOL) -> str:
     """``models``: run id -> PolyModel for every ranked run; ``lab``: the sweep's lab steps (order selection)."""
     parts = []
@@ -183,6 +213,9 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol
             f"na = {int(lab['lab.arx_na'])}, nb = {int(lab['lab.arx_nb'])} by AIC and na = "
             f"{int(lab['lab.arx_na_mdl'])}, nb = {int(lab['lab.arx_nb_mdl'])} by MDL.")
             + img(lab_png.get("orders.png"), "ARX order selection (selstruc)"))
+    delay = delay_evidence([models[i] for i in table_["run_id"]], int(lab["lab.nk"]) if "lab.nk" in lab else None)
+    if delay:
+        parts.append(para(delay))
     for st in dict.fromkeys(table_["structure"]):
         runs = table_[table_["structure"] == st]
         rows, flagged = [], []
