@@ -19,21 +19,21 @@ TESTS = Path(__file__).resolve().parent
 
 # The README's command runs the suite in two pytest-xdist workers, whole files at a time (--dist loadfile),
 # handing a worker its next file once it has at most 2 tests left.  xdist's default order (files with the
-# most tests first) leaves the end-to-end files, a few tests of 10–70 s each, for last, and one worker
-# idle while the other finishes them.  Longest first instead (on an idle 2-core machine, 2026-11-23, in s):
+# most tests first) leaves the end-to-end files, a few tests of 5–35 s each, for last, and one worker
+# idle while the other finishes them.  Longest first instead (top-40 durations summed per file, idle 2-core
+# machine, cold BLA cache as on CI, 2026-11-23, in s):
 LONGEST_FIRST = (
-    "study/test_concurrency.py",  # 70: two launches at once, SIGTERM, kill -9, submitit against a server
-    "study/test_parallel.py",     # 38: joblib workers, a tracking server
-    "study/test_report.py",       # 30: the default sweep, ranked and reported
-    "study/test_sweep.py",        # 27: a sweep, maglev ui
-    "study/test_faults.py",       # 15
-    "study/test_render.py",       # 9
-    "test_bench.py",              # 9
-    "sim/test_calibrate.py",      # 7
-    "estimation/test_estimate_real.py",  # 7
-    "study/test_cli.py",          # 6
-    "structures/test_registry.py",  # 6
+    "study/test_concurrency.py",  # 56: two launches at once, SIGTERM, kill -9, submitit against a server
+    "study/test_report.py",       # 37: the default sweep, its BLAs estimated, ranked and reported
+    "study/test_parallel.py",     # 32: joblib workers, a tracking server
+    "study/test_sweep.py",        # 19: a sweep, maglev ui
+    "test_bench.py",              # 12
+    "sim/test_calibrate.py",      # 9
     "estimation/test_nested_orders.py",  # 6
+    "study/test_faults.py",       # 6
+    "study/test_cli.py",          # 6
+    "study/test_config.py",       # 5
+    "estimation/test_estimate_real.py",  # 4
 )
 
 
