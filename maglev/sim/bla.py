@@ -47,7 +47,8 @@ from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.sim.plant import Levitator
 
 __all__ = ["Preprocess", "FrequencyResponse", "BLA", "bla", "frequency_response", "weighted_distance",
-           "relative_distance", "record_distance", "validation_records", "is_cached", "SEGMENT_S", "RECORD_SEGMENT_S", "REALISATIONS"]
+           "relative_distance", "record_distance", "validation_records", "is_cached", "SEGMENT_S",
+           "RECORD_SEGMENT_S", "REALISATIONS"]
 
 VERSION = 2  # bump when the estimator changes: old disk-cache entries are then ignored
 # The defaults make the BLA accurate enough to rank models 0.1-0.2 from it (docs/simulator.md, "Choices"):
@@ -285,12 +286,15 @@ def _one_estimator(path: Path | None):
     """Hold ``<entry>.lock`` beside a cache entry while estimating it: another process estimating the same
     entry (a sweep's background, :func:`maglev.study.datasets.prepare_blas`, or a parallel job) finishes
     first and this one then loads it.  Without a lock (no ``fcntl``, an unwritable directory) each estimates."""
+    if path is None:  # no disk cache: nothing to share
+        yield
+        return
     try:
         import fcntl
 
         path.parent.mkdir(parents=True, exist_ok=True)
         fh = open(path.with_suffix(".lock"), "a")
-    except (ImportError, OSError, AttributeError):  # AttributeError: path None (no disk cache)
+    except (ImportError, OSError):
         yield
         return
     try:
@@ -388,8 +392,8 @@ def weighted_distance(G_model: np.ndarray | Callable[[np.ndarray], np.ndarray], 
     such a feature counts with its value at one frequency.  An OE [4 4 2] model of the
     lab's narrow uniform class has a pole at 0.99942 and a zero at 0.99996 (|G(0)| = 0.04
     against 0.56 for the BLA, back to the BLA's level by 0.1 Hz): against the BLA of 2 s
-    segments and M = 16 it scored 0.34 at the Welch frequencies, 0.19 on the fine grid, and OE [3 3 2] 0.11 and 0.12.  On four
-    held-out records its mean square simulation error exceeds OE [3 3 2]'s by 0.18e-5 cm²;
+    segments and M = 16 it scored 0.34 at the Welch frequencies, 0.19 on the fine grid, and
+    OE [3 3 2] 0.11 and 0.12.  On four held-out records its mean square simulation error exceeds OE [3 3 2]'s by 0.18e-5 cm²;
     the fine grid predicts 0.15e-5, the Welch frequencies 0.68e-5.
     """
     G_model, G_ref, Suu, quad = _on_grid(G_model, ref)

@@ -120,8 +120,8 @@ def bla_distance(table: pd.DataFrame) -> list[Caution]:
     if not top["g_bla_err"] > BLA_RATIO * closest["g_bla_err"]:
         return []
     return [Caution("top_far_from_bla",
-                    f"The #1 model {top['name']} is {top['g_bla_err']:.3g} (relative, on records of the validation length) from "
-                    f"the best linear approximation of {top['dataset']}; {closest['name']} is "
+                    f"The #1 model {top['name']} is {top['g_bla_err']:.3g} (relative, on records of the validation "
+                    f"length) from the best linear approximation of {top['dataset']}; {closest['name']} is "
                     f"{closest['g_bla_err']:.3g}: the better-predicting model is the worse model of the plant.",
                     {"top": float(top["g_bla_err"]), "closest": float(closest["g_bla_err"]),
                      "closest_run": closest["name"]})]

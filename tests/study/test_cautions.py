@@ -200,5 +200,5 @@ def test_the_report_judges_the_swept_delay_by_the_models_first_b_coefficient(tru
     if true_delay == 2:
         assert "the response is there at lag 2" in text and "delayest's nk = 3 (from ARX [2 2 nk]) would leave" in text
     else:
-        assert "most models find no response at lag 2, so the swept delay is too small for the data (delayest: nk = 3)" \
-            in text
+        assert ("most models find no response at lag 2, so the swept delay is too small for the data "
+                "(delayest: nk = 3)") in text
