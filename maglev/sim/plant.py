@@ -326,14 +326,8 @@ class Levitator:
         if u.size < 10:
             raise ValueError(f"u must have at least 10 samples, got {u.size}")
         p = self.params
-        dt = Ts * self.time_scale()  # physical seconds per sample
-        if substeps is None:
-            substeps = max(1, math.ceil(dt / 1.7e-3))
-        elif not isinstance(substeps, int) or substeps < 1:
-            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
-        eq0 = self.equilibrium(start)
-        nd = self.delay_samples(Ts)
-        cur = np.concatenate([np.full(nd, eq0.current), self.current(u)])[: u.size]
+        dt, substeps, eq0, cur = self._drive(u[np.newaxis], Ts, start, substeps)
+        cur = cur[0]
         rng = np.random.default_rng(seed)
         if noise and p.force_noise > 0:
             force = rng.standard_normal(u.size) * p.force_noise
@@ -360,14 +354,23 @@ class Levitator:
         U = _checked_command(np.atleast_2d(np.asarray(U, dtype=float)), "U")
         if U.ndim != 2 or U.shape[1] < 10:
             raise ValueError(f"U must be records x samples with at least 10 samples, got shape {U.shape}")
-        p = self.params
+        dt, substeps, eq0, cur = self._drive(U, Ts, start, substeps)
+        return self.params.y_off + _integrate_batch(self.params, cur, dt, substeps, eq0.z, eq0.h)
+
+    def _drive(self, U: np.ndarray, Ts: float, start: float,
+               substeps: int | None) -> tuple[float, int, Equilibrium, np.ndarray]:
+        """What every simulation starts from, for commands ``U`` (records x samples, checked): physical
+        seconds per sample, integration steps per sample (default: steps of <= 1.7 ms of physics), the
+        equilibrium of command ``start``, and the coil current of each record after the input delay."""
         dt = Ts * self.time_scale()
         if substeps is None:
             substeps = max(1, math.ceil(dt / 1.7e-3))
+        elif not isinstance(substeps, int) or substeps < 1:
+            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
         eq0 = self.equilibrium(start)
         nd = self.delay_samples(Ts)
         cur = np.concatenate([np.full((U.shape[0], nd), eq0.current), self.current(U)], axis=1)[:, : U.shape[1]]
-        return p.y_off + _integrate_batch(p, cur, dt, substeps, eq0.z, eq0.h)
+        return dt, substeps, eq0, cur
 
     def _sensor_noise(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
         """White noise plus an AR(2) line at the mains ripple aliased by the sample period ``dt``."""
