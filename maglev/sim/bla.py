@@ -212,23 +212,28 @@ def frequency_response(data: IOData, segment_s: float = RECORD_SEGMENT_S) -> Fre
                              averages=k)
 
 
-def _system_of(plant: Levitator, Ts: float) -> System:
-    return lambda u, seed: plant.simulate(u, Ts=Ts, seed=seed, noise=False).y
+Outputs = Callable[[np.ndarray], "np.ndarray | list[np.ndarray]"]  # realisations' inputs (rows) -> their outputs
 
 
-def _batch_of(plant: Levitator, Ts: float) -> Callable[[np.ndarray], np.ndarray]:
-    return lambda U: plant.simulate_batch(U, Ts=Ts)  # noise-free: the seed only picks the input
+def _one_by_one(system: System) -> Outputs:
+    return lambda U: [system(u, SEED0 + m) for m, u in enumerate(U)]
 
 
-def _estimate(spec: ExperimentSpec, system: System | None, preprocess: Preprocess, realisations: int,
-              segment_s: float, batch: Callable[[np.ndarray], np.ndarray] | None = None) -> BLA:
-    """``system(u, seed)`` per realisation, or ``batch(U)`` for all realisations' inputs at once."""
+def _outputs_of(plant: Levitator, Ts: float, realisations: int) -> Outputs:
+    """Noise-free (the seed only picks the input): all records integrated together from
+    :data:`BATCH_FROM` realisations on, one by one below."""
+    if realisations >= BATCH_FROM:
+        return lambda U: plant.simulate_batch(U, Ts=Ts)
+    return _one_by_one(lambda u, seed: plant.simulate(u, Ts=Ts, seed=seed, noise=False).y)
+
+
+def _estimate(spec: ExperimentSpec, outputs: Outputs, preprocess: Preprocess, realisations: int,
+              segment_s: float) -> BLA:
     if realisations < 2:
         raise ValueError(f"realisations must be >= 2 (the standard error needs a spread), got {realisations!r}")
-    inputs = [input_signal(replace(spec, seed=SEED0 + m)) for m in range(realisations)]
-    outputs = batch(np.array(inputs)) if batch is not None else [system(u, SEED0 + m) for m, u in enumerate(inputs)]
+    inputs = np.array([input_signal(replace(spec, seed=SEED0 + m)) for m in range(realisations)])
     records = [preprocess.apply(IOData(u=u, y=np.asarray(y, dtype=float), Ts=spec.Ts))
-               for u, y in zip(inputs, outputs)]
+               for u, y in zip(inputs, outputs(inputs))]
     # at most half a record: var(y_s) is measured on what the BLA filter's reach (half a segment at each end) leaves
     half_record = records[0].N // 2
     nperseg = min(_segment(records[0].Ts, segment_s), half_record - half_record % 2)
@@ -347,7 +352,7 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
     preprocess = preprocess or Preprocess()
     plant = Levitator(zero_at_10=True) if plant is None else plant
     if not isinstance(plant, Levitator):
-        return _estimate(spec, plant, preprocess, realisations, segment_s)
+        return _estimate(spec, _one_by_one(plant), preprocess, realisations, segment_s)
     key = cache_key(spec, plant, preprocess, realisations, segment_s)
     if cache is not False and key in _MEMORY:
         return replace(_MEMORY[key], spec=spec)
@@ -357,9 +362,8 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
         with _one_estimator(path):
             est = _load(path) if path is not None and path.is_file() else None  # made while this one waited
             if est is None:
-                est = _estimate(spec, None, preprocess, realisations, segment_s, batch=_batch_of(plant, spec.Ts)) \
-                    if realisations >= BATCH_FROM else \
-                    _estimate(spec, _system_of(plant, spec.Ts), preprocess, realisations, segment_s)
+                est = _estimate(spec, _outputs_of(plant, spec.Ts, realisations), preprocess, realisations,
+                                segment_s)
                 if path is not None:
                     try:
                         _save(path, est)
