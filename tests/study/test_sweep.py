@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from maglev.study.shutdown import descendants
+
 from .harness import LEAN, REPO, TINY, all_runs, artifact_paths, launch, study_log
 
 FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png", "figures/step.png"}
@@ -148,23 +150,6 @@ def test_runs_explain_themselves_in_the_ui(sweep):
         "Sweep tiny: 4 model runs (4 FINISHED) of 2 dataset(s) (uniform_narrow, binary_a025) × 2 structure(s) "
         "(arx, oe) × orders 2.")
     assert "Not ranked yet" in parent.data.tags["mlflow.note.content"]
-
-
-def descendants(pid: int) -> list[int]:
-    """Every process below ``pid`` (Linux /proc)."""
-    kids = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        kids.setdefault(int(fields[1]), []).append(int(stat.parent.name))
-    out, todo = [], [pid]
-    while todo:
-        for child in kids.get(todo.pop(), []):
-            out.append(child)
-            todo.append(child)
-    return out
 
 
 def alive(pid: int) -> bool:
