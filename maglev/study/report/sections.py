@@ -10,7 +10,7 @@ from __future__ import annotations
 import base64
 import html
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -172,7 +172,7 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict) -> str:
                    "<details><summary>Per model</summary>" + table(per_model) + "</details>")
 
 
-def delay_evidence(models: Iterable[PolyModel], delayest_nk: int | None = None) -> str:
+def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) -> str:
     """Whether the identified models support their delay: how many have a first B coefficient b_nk more than
     two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given."""
     z = []
