@@ -43,6 +43,7 @@ import numpy as np
 from scipy import signal
 
 from maglev.data import IOData
+from maglev.locks import exclusive
 from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.sim.plant import Levitator
 
@@ -286,27 +287,13 @@ def is_cached(spec: ExperimentSpec, plant: Levitator | None = None, *, preproces
     return (cache_dir() / f"{key}.npz").is_file()
 
 
-@contextlib.contextmanager
-def _one_estimator(path: Path | None):
+def _one_estimator(path: Path | None) -> contextlib.AbstractContextManager:
     """Hold ``<entry>.lock`` beside a cache entry while estimating it: another process estimating the same
     entry (a sweep's background, :func:`maglev.study.datasets.prepare_blas`, or a parallel job) finishes
     first and this one then loads it.  Without a lock (no ``fcntl``, an unwritable directory) each estimates."""
     if path is None:  # no disk cache: nothing to share
-        yield
-        return
-    try:
-        import fcntl
-
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fh = open(path.with_suffix(".lock"), "a")
-    except (ImportError, OSError):
-        yield
-        return
-    try:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        yield
-    finally:
-        fh.close()  # releases the lock
+        return contextlib.nullcontext()
+    return exclusive(path.with_suffix(".lock"), best_effort=True)
 
 
 def _save(path: Path, est: BLA) -> None:

@@ -34,6 +34,7 @@ import mlflow  # noqa: E402
 from mlflow import MlflowClient  # noqa: E402
 from mlflow.entities import Metric, Param, RunTag  # noqa: E402
 
+from maglev.locks import exclusive  # noqa: E402
 from maglev.paths import project_root  # noqa: E402
 
 PARENT_FILE = "parent_run_id"
@@ -49,25 +50,12 @@ def sqlite_path(uri: str) -> Path | None:
     return Path(uri[len("sqlite:///"):])
 
 
-@contextlib.contextmanager
-def store_lock(uri: str):
+def store_lock(uri: str) -> contextlib.AbstractContextManager:
     """An exclusive lock beside a SQLite database (no-op for servers and without fcntl)."""
     db = sqlite_path(uri)
     if db is None:
-        yield
-        return
-    db.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        import fcntl
-    except ImportError:  # Windows: rely on creating the store before workers start
-        yield
-        return
-    with open(db.with_name(db.name + ".lock"), "w") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+        return contextlib.nullcontext()
+    return exclusive(db.with_name(db.name + ".lock"))
 
 
 class TrackingUnreachable(SystemExit):
