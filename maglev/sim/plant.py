@@ -13,24 +13,29 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
 * coil force on the lower magnet ``Fc = I / (a (z + b)^n)`` (repulsive, linear in
   the current), and a weaker pull on the upper magnet ``Fa = kappa I / (a (h + b)^n)``;
 * magnet-magnet repulsion ``Fm = c / (h - z + d)^4`` (Gilbert far field with an offset);
-* gravity, viscous friction ``gamma v`` and dry friction of each bushing on the glass
-  rod: Coulomb level + a Stribeck (velocity-weakening) peak, tanh-regularised over a
-  creep speed ``v_creep`` (``(Fc + Fs exp(-(v/vs)^2)) tanh(v/v_creep)``), which makes
-  small motions heavily damped and large ones lightly damped (the rig's amplitude
-  dependence, notes §4.6);
+* gravity and the friction of each bushing on the glass rod, a viscous damping that
+  depends on what the magnets have been doing (:class:`_Damping`): ``gamma`` in motion,
+  plus ``gamma_quiet`` while the input is quiet *for its class* (the band-passed current
+  over its own jitter grades random binary α .25, α .5 and white noise apart, as the rig's
+  damping does), plus ``gamma_aged`` on a contact that has rested (rate-and-state
+  ageing: a step after a rest is damped more).  Small motions are heavily damped, large
+  ones lightly (the rig's amplitude dependence, notes §4.6; docs/simulator.md, fifth
+  attempt).  An optional dry friction (Coulomb + Stribeck, tanh-regularised over
+  ``v_creep``) is off by default;
 * the current regulator saturates at ``i_sat`` (≈ 4.06 A on the rig) and, as an
   option, the lab's logging quirk "command >= 10 A is written as 0 A";
 * a pure input delay; a laser reading ``y = y_off + h`` plus sensor noise (white +
-  a narrow mains-ripple line) quantised to the ADC step; optional process (force) noise.
+  a narrow mains-ripple line) and a disturbance at each command switch, quantised to
+  the ADC step; optional process (force) noise.
 
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
 6-7 ms of physical time (notes §5).  By default the simulator reproduces the
 records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
-of physics with ``time_scale = t_phys / 1 ms`` (5.852, fitted by ``maglev.sim.calibrate``
-together with the friction), so a 60 s-labelled record covers about 350 s of physics
+of physics with ``time_scale = t_phys / 1 ms`` (6.438, fitted by ``maglev.sim.calibrate``
+together with the friction), so a 60 s-labelled record covers about 390 s of physics
 and the transients have the real records' length in samples.  With
 ``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
-sample), and its transients are about 6 times longer in samples.
+sample), and its transients are about 6.4 times longer in samples.
 """
 
 from __future__ import annotations
@@ -44,7 +49,8 @@ from scipy import optimize, signal
 
 from maglev.data import IOData
 
-__all__ = ["LevitatorParams", "Equilibrium", "LinearModel", "Levitator", "U_MIN", "U_MAX"]
+__all__ = ["LevitatorParams", "Equilibrium", "LinearModel", "Levitator", "PLANTS", "DEFAULT_PLANT", "rig",
+           "U_MIN", "U_MAX"]
 
 U_MIN, U_MAX = 0.0, 10.0  # the rig's allowed command range [A]
 LABEL_TS = 1e-3  # the sampling period the lab's records are labelled with [s]
@@ -57,41 +63,69 @@ class LevitatorParams:
 
     m: float = 0.12  # kg, mass of each magnet
     g: float = 9.81  # m/s^2
-    a: float = 0.3563  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
-    b: float = 1.392  # cm, offset of the coil force law
-    n_coil: float = 1.275  # exponent of the coil force law
-    kappa: float = 0.1965  # coil pull on the upper magnet relative to the push on the lower one
-    c: float = 2.21e4  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
-    d: float = 4.2  # cm, offset of the repulsion law
-    gamma_lower: float = 2.629  # N s/m, viscous friction of the lower magnet
-    gamma_upper: float = 0.07442  # N s/m, viscous friction of the upper magnet
-    coulomb_lower: float = 0.006933  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
-    coulomb_upper: float = 0.05094  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
-    stiction_lower: float = 0.3606  # N, extra friction at low speed (Stribeck peak) on the lower magnet
-    stiction_upper: float = 0.08819  # N, extra friction at low speed (Stribeck peak) on the upper magnet
+    a: float = 0.352464  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
+    b: float = 1.404207  # cm, offset of the coil force law
+    n_coil: float = 1.291744  # exponent of the coil force law
+    kappa: float = 0.135485  # coil pull on the upper magnet relative to the push on the lower one
+    c: float = 1.130784e5  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
+    d: float = 10.0  # cm, offset of the repulsion law
+    # damping of each bushing [N s/m]: gamma in motion, plus gamma_quiet while the input is quiet
+    # for its class, plus gamma_aged on a contact that has rested (docs/simulator.md, "Physics")
+    gamma_lower: float = 0.6767  # N s/m, viscous friction of the lower magnet in motion
+    gamma_upper: float = 0.4590  # N s/m, viscous friction of the upper magnet in motion
+    gamma_quiet_lower: float = 3.0104  # N s/m, extra damping of the lower magnet while its activity is 0
+    gamma_quiet_upper: float = 5.1400  # N s/m, same for the upper magnet
+    quiet_level_lower: float = 0.11512  # A, band-passed current at which the lower magnet's activity is 1
+    quiet_level_upper: float = 0.090682  # A, same for the upper magnet
+    quiet_power_lower: float = 6.2235  # gamma_quiet / (1 + activity^power): how sharply it fades
+    quiet_power_upper: float = 6.8592
+    activity_fast_lower: float = 0.020101  # s (physical), fast low pass of the current's band pass
+    activity_fast_upper: float = 0.019334
+    activity_slow_lower: float = 0.33223  # s (physical), slow low pass subtracted from it
+    activity_slow_upper: float = 0.39962
+    activity_attack: float = 0.003  # s (physical), the activity envelope's rise
+    activity_release: float = 0.18732  # s (physical), and its fall
+    jitter_weight: float = 1.2553  # share of the current's jitter added to quiet_level (class, not range)
+    jitter_tau: float = 0.025790  # s (physical), low pass of the current's |step| per sample (the jitter)
+    gamma_aged_lower: float = 1.5267  # N s/m, extra damping of the lower bushing after a long rest
+    gamma_aged_upper: float = 1.5359  # N s/m, same for the upper bushing
+    age_half: float = 0.20214  # s (physical), contact age at which half of gamma_aged acts
+    slip_renewal: float = 0.10158  # cm, slip that renews a contact (ageing law, backward Euler)
+    # optional dry friction (off by default): Coulomb level + Stribeck peak, tanh-regularised sign
+    coulomb_lower: float = 0.0  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
+    coulomb_upper: float = 0.0  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
+    stiction_lower: float = 0.0  # N, extra friction at low speed (Stribeck peak) on the lower magnet
+    stiction_upper: float = 0.0  # N, extra friction at low speed (Stribeck peak) on the upper magnet
     v_stribeck: float = 1.316  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
     v_creep: float = 0.713  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
     h_top: float = 16.0  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
-    i_sat: float = 3.899  # A, current-regulator saturation
-    delay: float = 0.0  # s (physical), pure input delay beyond the one-sample read-then-write lag
-    t_phys: float = 0.005852  # s of physics per logged sample labelled 1 ms
-    y_off: float = 0.4505  # cm, reading y = y_off + h
+    i_sat: float = 3.89868  # A, current-regulator saturation
+    delay: float = 0.011127  # s (physical), pure input delay beyond the one-sample read-then-write lag
+    t_phys: float = 0.0064383  # s of physics per logged sample labelled 1 ms
+    y_off: float = 0.350993  # cm, reading y = y_off + h
     noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
     noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
-    noise_line_hz: float = 116.81  # Hz, ripple frequency (aliased by the logging rate)
+    noise_line_hz: float = 106.18  # Hz, ripple frequency (aliased by the logging rate)
     noise_line_radius: float = 0.9198  # pole radius of the AR(2) line (its sharpness)
     quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
     force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
+    switch_noise: float = 0.004773  # cm per A of command step: a reading disturbance at each switch
+    switch_noise_pole: float = 0.5  # its pole (per logged sample)
 
     def __post_init__(self) -> None:
-        positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys", "v_stribeck")
+        positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys", "v_stribeck",
+                    "quiet_level_lower", "quiet_level_upper", "quiet_power_lower", "quiet_power_upper",
+                    "age_half", "slip_renewal")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"LevitatorParams.{name} must be a positive number, got {value!r}")
         nonneg = ("kappa", "gamma_lower", "gamma_upper", "coulomb_lower", "coulomb_upper",
                   "stiction_lower", "stiction_upper", "v_creep", "delay",
-                  "noise_std", "noise_line_hz", "quant", "force_noise")
+                  "noise_std", "noise_line_hz", "quant", "force_noise", "gamma_quiet_lower",
+                  "gamma_quiet_upper", "activity_fast_lower", "activity_fast_upper", "activity_slow_lower",
+                  "activity_slow_upper", "activity_attack", "activity_release", "jitter_weight", "jitter_tau",
+                  "gamma_aged_lower", "gamma_aged_upper", "switch_noise")
         for name in nonneg:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -99,6 +133,10 @@ class LevitatorParams:
         if not 0.0 <= self.noise_line_fraction <= 1.0:
             raise ValueError(
                 f"LevitatorParams.noise_line_fraction must be in [0, 1], got {self.noise_line_fraction!r}"
+            )
+        if not 0.0 <= self.switch_noise_pole < 1.0:
+            raise ValueError(
+                f"LevitatorParams.switch_noise_pole must be in [0, 1), got {self.switch_noise_pole!r}"
             )
         if not 0.0 <= self.noise_line_radius < 1.0:
             raise ValueError(
@@ -150,7 +188,7 @@ class Levitator:
     """The levitator rig: ``simulate`` a command record, find ``equilibrium``, ``linearize``.
 
     ``physical_time=False`` (default) reproduces the lab's records as labelled: every
-    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (5.852 ms for Ts = 1 ms).
+    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (6.438 ms for Ts = 1 ms).
     ``physical_time=True`` integrates exactly ``Ts`` of physics per sample.
     ``zero_at_10=True`` reproduces the lab logger's quirk of writing 0 A for any
     command >= 10 A (the 10 A level of the real staircase reads as 0 A).
@@ -250,12 +288,12 @@ class Levitator:
         magnet is seated; the output is the reading deviation in cm and the input the
         command deviation in A (zero gain where the regulator saturates).
 
-        Dry friction: with ``v_creep > 0`` the friction law is smooth, and its slope at
-        rest, ``(coulomb + stiction) / v_creep``, is a (large) viscous damping that the
-        exact Jacobian includes (``dry_friction=True``): the model of *infinitesimal*
-        motion.  Records with real excitation move far beyond ``v_creep`` and see much
-        less damping; ``dry_friction=False`` gives the viscous-only model instead.
-        Set-valued friction (``v_creep = 0``) has no derivative at rest and is left out.
+        Friction at rest (``dry_friction=True``): the model of *infinitesimal* motion about
+        a long rest, with the full quiet-input and aged-contact damping (``gamma_quiet``,
+        ``gamma_aged``) and, with ``v_creep > 0``, the optional dry friction's slope at rest
+        ``(coulomb + stiction) / v_creep``.  Records with real excitation see much less
+        damping; ``dry_friction=False`` gives the model in motion (``gamma`` only).  Set-valued
+        friction (``v_creep = 0``) has no derivative at rest and is left out.
         """
         Ts = _checked_ts(Ts)
         eq = self.equilibrium(u0)
@@ -270,9 +308,12 @@ class Levitator:
         dfc_di = 1.0 / (p.a * (z + p.b) ** p.n_coil)
         gain_u = 0.0 if (self.zero_at_10 and eq.u >= U_MAX) or not 0.0 < eq.u < p.i_sat else 1.0
         gl, gu = p.gamma_lower / p.m, p.gamma_upper / p.m
-        if dry_friction and p.v_creep > 0:
-            gl += _CM * (p.coulomb_lower + p.stiction_lower) / (p.v_creep * p.m)
-            gu += _CM * (p.coulomb_upper + p.stiction_upper) / (p.v_creep * p.m)
+        if dry_friction:  # at rest: a quiet input and contacts aged without bound
+            gl += (p.gamma_quiet_lower + p.gamma_aged_lower) / p.m
+            gu += (p.gamma_quiet_upper + p.gamma_aged_upper) / p.m
+            if p.v_creep > 0:
+                gl += _CM * (p.coulomb_lower + p.stiction_lower) / (p.v_creep * p.m)
+                gu += _CM * (p.coulomb_upper + p.stiction_upper) / (p.v_creep * p.m)
         if eq.upper_at_top:
             # the upper magnet is pressed against its stop: the reading cannot move
             A = np.array([[-1.0]])
@@ -337,6 +378,8 @@ class Levitator:
         y = p.y_off + h
         if noise:
             y = y + self._sensor_noise(u.size, dt, rng)
+            if p.switch_noise > 0:
+                y = y + self._switch_noise(u, rng)
             if p.quant > 0:
                 y = np.round(y / p.quant) * p.quant
         return IOData(u=u, y=y, Ts=Ts, name=name,
@@ -372,6 +415,14 @@ class Levitator:
         cur = np.concatenate([np.full((U.shape[0], nd), eq0.current), self.current(U)], axis=1)[:, : U.shape[1]]
         return dt, substeps, eq0, cur
 
+    def _switch_noise(self, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """A reading disturbance at each command switch: white noise scaled by ``switch_noise`` x |Δu|,
+        through the pole ``switch_noise_pole`` (the rig's records wobble after each switch, in proportion
+        to the step: docs/simulator.md, second attempt)."""
+        p = self.params
+        du = np.abs(np.diff(u, prepend=u[0]))
+        return signal.lfilter([1.0], [1.0, -p.switch_noise_pole], p.switch_noise * du * rng.standard_normal(u.size))
+
     def _sensor_noise(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
         """White noise plus an AR(2) line at the mains ripple aliased by the sample period ``dt``."""
         p = self.params
@@ -386,6 +437,29 @@ class Levitator:
         white = rng.standard_normal(n)
         frac = p.noise_line_fraction
         return p.noise_std * (math.sqrt(frac) * line + math.sqrt(1 - frac) * white)
+
+
+# Named parameter sets of the lab's rig, so that a study's config names the plant its data came from and
+# a run logged before the defaults changed still reproduces (``dataset.plant``; docs/simulator.md).
+PLANTS: dict[str, dict[str, float]] = {
+    # the defaults: quiet-input and aged-contact damping, d = 10 cm (issue 15's fifth attempt, 2026-11-23)
+    "quiet_ageing": {},
+    # the defaults until 2026-11-23: Coulomb + Stribeck dry friction, d = 4.2 cm, no delay or switch noise
+    "dry_friction": dict(
+        a=0.3563, b=1.392, n_coil=1.275, kappa=0.1965, c=2.21e4, d=4.2, gamma_lower=2.629, gamma_upper=0.07442,
+        gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0,
+        coulomb_lower=0.006933, coulomb_upper=0.05094, stiction_lower=0.3606, stiction_upper=0.08819,
+        i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81, switch_noise=0.0),
+}
+DEFAULT_PLANT = "quiet_ageing"
+
+
+def rig(plant: str = DEFAULT_PLANT) -> Levitator:
+    """The lab's rig as the study simulates it: the named parameter set of ``PLANTS``, with the logger's
+    quirk of writing a command >= 10 A as 0 A."""
+    if plant not in PLANTS:
+        raise ValueError(f"plant must be one of {sorted(PLANTS)}, got {plant!r}")
+    return Levitator(replace(LevitatorParams(), **PLANTS[plant]), zero_at_10=True)
 
 
 def _friction(v: float, fc: float, fs: float, vs: float, vc: float, gamma: float) -> tuple[float, float]:
@@ -405,19 +479,93 @@ def _friction(v: float, fc: float, fs: float, vs: float, vc: float, gamma: float
     return force, slope
 
 
-def _velocity_step(hk: float, gamma: float, fc: float, fs: float, ivs2: float, ivc: float,
-                   smooth: bool):
-    """The velocity update of one magnet over one substep, for its friction parameters.
+_REST_AGE = 10.0  # s (physical): contact age of both bushings when a record starts (at rest since long)
+
+
+def _rate(hs: float, tau: float) -> float:
+    """Update weight of a first-order low pass with time constant ``tau`` over a step ``hs`` (1: no lag)."""
+    return min(hs / tau, 1.0) if tau > 0 else 1.0
+
+
+class _Damping:
+    """Viscous damping of both magnets [N per cm/s], substep by substep, for one record or many.
+
+    ``gamma`` (in motion) + ``gamma_quiet / (1 + activity^power)`` + ``gamma_aged θ / (θ + age_half)``.
+    The activity grades the input's class: the coil current band-passed between the low passes
+    ``activity_slow`` and ``activity_fast``, over ``quiet_level + jitter_weight * jitter`` (the
+    jitter: the current's |step| per sample, low-passed over ``jitter_tau``), through an envelope
+    (attack ``activity_attack``, release ``activity_release``).  It depends on the input alone.
+    θ is each bushing's contact age, the ageing law of rate-and-state friction
+    ``dθ/dt = 1 - θ |v| / slip_renewal`` (backward Euler), so a magnet that has rested is damped
+    more.  The same code runs on floats (one record) and on arrays (one element per record):
+    :meth:`sample` at each logged sample, :attr:`lower`/:attr:`upper` for the velocity update,
+    then :meth:`substep` with the new velocities.
+    """
+
+    def __init__(self, p: LevitatorParams, hs: float, dt: float, cur0: float | np.ndarray) -> None:
+        self.p, self.hs = p, hs
+        self.quiet = p.gamma_quiet_lower > 0 or p.gamma_quiet_upper > 0
+        self.aged = p.gamma_aged_lower > 0 or p.gamma_aged_upper > 0
+        self.fast = (_rate(hs, p.activity_fast_lower), _rate(hs, p.activity_fast_upper))
+        self.slow = (_rate(hs, p.activity_slow_lower), _rate(hs, p.activity_slow_upper))
+        self.attack, self.release = _rate(hs, p.activity_attack), _rate(hs, p.activity_release)
+        self.jitter_rate = _rate(dt, p.jitter_tau)
+        self.inv_renewal = 1.0 / p.slip_renewal
+        self.filt = [cur0, cur0, cur0, cur0]  # fast and slow low passes of the current, lower then upper
+        self.env_l = self.env_u = 0.0 * cur0
+        self.jitter, self.prev, self.cur = 0.0 * cur0, cur0, cur0
+        self.age_l = self.age_u = _REST_AGE + 0.0 * cur0
+        self._gammas()
+
+    def _gammas(self) -> None:
+        p = self.p
+        gl, gu = p.gamma_lower, p.gamma_upper
+        if self.quiet:
+            gl = gl + p.gamma_quiet_lower / (1.0 + self.env_l ** p.quiet_power_lower)
+            gu = gu + p.gamma_quiet_upper / (1.0 + self.env_u ** p.quiet_power_upper)
+        if self.aged:
+            gl = gl + p.gamma_aged_lower * self.age_l / (self.age_l + p.age_half)
+            gu = gu + p.gamma_aged_upper * self.age_u / (self.age_u + p.age_half)
+        self.lower, self.upper = gl / _CM, gu / _CM
+
+    def sample(self, cur: float | np.ndarray) -> None:
+        """A new logged sample with coil current ``cur`` begins: update the jitter."""
+        self.jitter = self.jitter + self.jitter_rate * (abs(cur - self.prev) - self.jitter)
+        self.prev = self.cur = cur
+
+    def substep(self, vz: float | np.ndarray, vh: float | np.ndarray) -> None:
+        """After the velocity update: age the contacts, follow the activity, refresh the damping."""
+        p, hs = self.p, self.hs
+        if self.aged:
+            self.age_l = (self.age_l + hs) / (1.0 + hs * abs(vz) * self.inv_renewal)
+            self.age_u = (self.age_u + hs) / (1.0 + hs * abs(vh) * self.inv_renewal)
+        if self.quiet:
+            c, f = self.cur, self.filt
+            f[0] = f[0] + self.fast[0] * (c - f[0])
+            f[1] = f[1] + self.slow[0] * (c - f[1])
+            f[2] = f[2] + self.fast[1] * (c - f[2])
+            f[3] = f[3] + self.slow[1] * (c - f[3])
+            spread = p.jitter_weight * self.jitter
+            act_l = abs(f[0] - f[1]) / (p.quiet_level_lower + spread)
+            act_u = abs(f[2] - f[3]) / (p.quiet_level_upper + spread)
+            up, down = self.attack, self.release
+            self.env_l = self.env_l + (down + (up - down) * (act_l > self.env_l)) * (act_l - self.env_l)
+            self.env_u = self.env_u + (down + (up - down) * (act_u > self.env_u)) * (act_u - self.env_u)
+        if self.quiet or self.aged:
+            self._gammas()
+
+
+def _velocity_step(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool):
+    """The velocity update of one magnet over one substep, for its dry-friction parameters.
 
     ``hk`` is the substep times the force-to-acceleration factor; the returned function
-    maps (velocity, external force) to the new velocity (see :func:`_integrate`).
+    maps (velocity, external force, viscous damping) to the new velocity (see :func:`_integrate`).
     """
     exp, tanh = math.exp, math.tanh
-    damp = 1.0 + hk * gamma
     if fc + fs <= 0.0:  # viscous only: implicit Euler
-        return lambda v, a: (v + hk * a) / damp
+        return lambda v, a, gamma: (v + hk * a) / (1.0 + hk * gamma)
     if smooth:
-        def step(v: float, a: float) -> float:
+        def step(v: float, a: float, gamma: float) -> float:
             e = exp(-v * v * ivs2) if fs else 0.0
             th = tanh(v * ivc)
             level = fc + fs * e
@@ -425,7 +573,8 @@ def _velocity_step(hk: float, gamma: float, fc: float, fs: float, ivs2: float, i
             return v + hk * (a - level * th - gamma * v) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
         return step
 
-    def stick_slip(v: float, a: float) -> float:
+    def stick_slip(v: float, a: float, gamma: float) -> float:
+        damp = 1.0 + hk * gamma
         band = hk * (fc + fs * exp(-v * v * ivs2)) / damp
         v = (v + hk * a) / damp
         return v - band if v > band else (v + band if v < -band else 0.0)
@@ -438,8 +587,9 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
 
     Velocities are updated first with the forces at the current positions and the
     friction treated implicitly, then positions with the new velocities; the seat
-    (z >= 0) and the top stop (h <= h_top) are inelastic.  With ``v_creep > 0`` the
-    dry friction (Coulomb + Stribeck, tanh-regularised) is linearised about the old
+    (z >= 0) and the top stop (h <= h_top) are inelastic.  The viscous damping varies
+    from substep to substep (:class:`_Damping`) and is implicit.  With ``v_creep > 0`` the
+    optional dry friction (Coulomb + Stribeck, tanh-regularised) is linearised about the old
     velocity, ``v' = v + hs (a_ext - k F(v)) / (1 + hs k max(F'(v), 0))`` - one Newton
     step of backward Euler, stable however steep the tanh is (the velocity-weakening
     part, whose slope is negative, stays explicit).  With ``v_creep = 0`` the dry
@@ -453,29 +603,31 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     w = p.m * p.g
     ia = 1.0 / p.a
     n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
-    gl, gu = p.gamma_lower / _CM, p.gamma_upper / _CM  # N per cm/s
-    fcl, fcu, fsl, fsu = p.coulomb_lower, p.coulomb_upper, p.stiction_lower, p.stiction_upper
     ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
     vc = p.v_creep
     smooth = vc > 0.0
     ivc = 1.0 / vc if smooth else 0.0
     hk = hs * k
     top = p.h_top
-    step_l = _velocity_step(hk, gl, fcl, fsl, ivs2, ivc, smooth)
-    step_u = _velocity_step(hk, gu, fcu, fsu, ivs2, ivc, smooth)
+    step_l = _velocity_step(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, smooth)
+    step_u = _velocity_step(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, smooth)
+    cur_list = cur.tolist()
+    damping = _Damping(p, hs, dt, cur_list[0] if cur_list else 0.0)
     z, h, vz, vh = z0, h0, 0.0, 0.0
     zs = [0.0] * len(cur)
     hs_out = [0.0] * len(cur)
-    for i, (i_c, f_n) in enumerate(zip(cur.tolist(), force.tolist())):
+    for i, (i_c, f_n) in enumerate(zip(cur_list, force.tolist())):
         zs[i] = z  # the reading is taken at the start of the sample, then the new current acts
         hs_out[i] = h
         ci = i_c * ia
+        damping.sample(i_c)
         for _ in range(substeps):
             fm = c / (h - z + d) ** 4
             az = ci / (z + b) ** n - fm - w  # N, external force on the lower magnet
             ah = fm - kap * ci / (h + b) ** n - w + f_n  # N, on the upper magnet
-            vz = step_l(vz, az)
-            vh = step_u(vh, ah)
+            vz = step_l(vz, az, damping.lower)
+            vh = step_u(vh, ah, damping.upper)
+            damping.substep(vz, vh)
             z += hs * vz
             h += hs * vh
             if z < 0.0:
@@ -485,14 +637,12 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     return np.array(zs), np.array(hs_out)
 
 
-def _velocity_step_batch(hk: float, gamma: float, fc: float, fs: float, ivs2: float, ivc: float,
-                         smooth: bool):
-    """:func:`_velocity_step` on arrays of velocities and forces (one element per record)."""
-    damp = 1.0 + hk * gamma
+def _velocity_step_batch(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool):
+    """:func:`_velocity_step` on arrays of velocities, forces and dampings (one element per record)."""
     if fc + fs <= 0.0:
-        return lambda v, a: (v + hk * a) / damp
+        return lambda v, a, gamma: (v + hk * a) / (1.0 + hk * gamma)
     if smooth:
-        def step(v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        def step(v: np.ndarray, a: np.ndarray, gamma: np.ndarray) -> np.ndarray:
             e = np.exp(-v * v * ivs2) if fs else 0.0
             th = np.tanh(v * ivc)
             level = fc + fs * e
@@ -500,7 +650,8 @@ def _velocity_step_batch(hk: float, gamma: float, fc: float, fs: float, ivs2: fl
             return v + hk * (a - level * th - gamma * v) / (1.0 + hk * np.maximum(slope, 0.0))
         return step
 
-    def stick_slip(v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    def stick_slip(v: np.ndarray, a: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+        damp = 1.0 + hk * gamma
         band = hk * (fc + fs * np.exp(-v * v * ivs2)) / damp
         v = (v + hk * a) / damp
         return np.where(v > band, v - band, np.where(v < -band, v + band, 0.0))
@@ -520,21 +671,22 @@ def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: i
     ivc = 1.0 / p.v_creep if p.v_creep > 0.0 else 0.0
     ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
     hk = hs * k
-    step_l = _velocity_step_batch(hk, p.gamma_lower / _CM, p.coulomb_lower, p.stiction_lower, ivs2, ivc,
-                                  p.v_creep > 0.0)
-    step_u = _velocity_step_batch(hk, p.gamma_upper / _CM, p.coulomb_upper, p.stiction_upper, ivs2, ivc,
-                                  p.v_creep > 0.0)
+    step_l = _velocity_step_batch(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, p.v_creep > 0.0)
+    step_u = _velocity_step_batch(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, p.v_creep > 0.0)
     rows = cur.shape[0]
     z, h = np.full(rows, z0), np.full(rows, h0)
     vz, vh = np.zeros(rows), np.zeros(rows)
+    damping = _Damping(p, hs, dt, cur[:, 0].copy())
     out = np.empty_like(cur)
     for i in range(cur.shape[1]):
         out[:, i] = h
         ci = cur[:, i] * ia
+        damping.sample(cur[:, i])
         for _ in range(substeps):
             fm = c / (h - z + d) ** 4
-            vz = step_l(vz, ci / (z + b) ** n - fm - w)
-            vh = step_u(vh, fm - kap * ci / (h + b) ** n - w)
+            vz = step_l(vz, ci / (z + b) ** n - fm - w, damping.lower)
+            vh = step_u(vh, fm - kap * ci / (h + b) ** n - w, damping.upper)
+            damping.substep(vz, vh)
             z = z + hs * vz
             h = h + hs * vh
             seated = z < 0.0

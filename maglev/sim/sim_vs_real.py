@@ -16,7 +16,7 @@ order shows both on every record:
 * both modes (≈ 80-90 and ≈ 215 rad/s) of OE(4,4,5) models of the same records and of
   ``white_noise_4`` (U(1.5, 4) A), decimated by 2 (``FOURTH_ORDERS``; nk = 5 is
   ``delayest`` on the decimated real ``white_noise_4``).  On white noise the 90 rad/s
-  mode is not excited enough to be identified (the dry friction holds small motions
+  mode is not excited enough to be identified (the friction holds small motions
   back), so its least-damped mode (pairs slower than 30 rad/s are drift or stick
   plateaus and are skipped) is the 215 rad/s one.
 

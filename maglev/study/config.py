@@ -84,8 +84,12 @@ def check(cfg: dict) -> None:
 def raw_length(ds: dict, data_dir: str) -> int:
     """Samples of the dataset before preprocessing, without simulating (a file is read once)."""
     if ds["source"] == "sim":
-        from maglev.study.datasets import sim_spec
+        from maglev.sim.plant import PLANTS
+        from maglev.study.datasets import plant_name, sim_spec
 
+        if plant_name(ds) not in PLANTS:
+            raise StudyConfigError(f"dataset {ds['name']!r}: dataset.plant must be one of {sorted(PLANTS)} "
+                                   f"(maglev.sim.plant.PLANTS), got {ds['plant']!r}")
         if ds["input_class"] == "binary" and ds.get("alpha") is None:
             raise StudyConfigError(f"dataset {ds['name']!r}: dataset.alpha (switching probability in [0, 1]) "
                                    "is needed for a binary input")

@@ -53,7 +53,7 @@ def load_raw(ds: dict, data_dir: str) -> IOData:
     if ds["source"] == "sim":
         return _simulate(ds["input_class"], float(ds["low"]), float(ds["high"]),
                          None if ds.get("alpha") is None else float(ds["alpha"]),
-                         float(ds["duration_s"]), int(ds["seed"]), float(ds["Ts"]), ds["name"])
+                         float(ds["duration_s"]), int(ds["seed"]), float(ds["Ts"]), ds["name"], plant_name(ds))
     if ds["source"] == "file":
         path = data_path(ds, data_dir)
         reader = IOData.from_csv if path.suffix.lower() == ".csv" else IOData.from_mat
@@ -72,6 +72,17 @@ def sim_spec(ds: dict):
                           duration_s=float(ds["duration_s"]), seed=int(ds["seed"]), Ts=float(ds["Ts"]))
 
 
+# The simulator parameter set of configs logged before ``dataset.plant`` existed (2026-11-23): the schema
+# gives every newer config the key, so a config without it was simulated on the defaults of that time.
+UNNAMED_PLANT = "dry_friction"
+
+
+def plant_name(ds: dict) -> str:
+    """The simulator parameter set (``maglev.sim.plant.PLANTS``) a dataset config names (``UNNAMED_PLANT``
+    for a config logged before the key existed)."""
+    return str(ds.get("plant") or UNNAMED_PLANT)
+
+
 def _bla_preprocess(ds: dict):
     from maglev.sim.bla import Preprocess
 
@@ -83,8 +94,9 @@ def dataset_bla(ds: dict):
     """The simulator's best linear approximation for a simulated dataset's input class, on the time base
     of its models (the dataset's trim, detrend and decimation; :func:`maglev.sim.bla.bla`, cached)."""
     from maglev.sim.bla import bla
+    from maglev.sim.plant import rig
 
-    return bla(sim_spec(ds), preprocess=_bla_preprocess(ds))
+    return bla(sim_spec(ds), rig(plant_name(ds)), preprocess=_bla_preprocess(ds))
 
 
 def prepare_blas(configs: list[dict]):
@@ -121,14 +133,15 @@ def _estimate_blas(datasets: list[dict]) -> None:
 
 
 @functools.lru_cache(maxsize=16)
-def _simulate(kind, low, high, alpha, duration_s, seed, Ts, name) -> IOData:
+def _simulate(kind, low, high, alpha, duration_s, seed, Ts, name, plant) -> IOData:
     from dataclasses import replace
 
     from maglev.sim.labdata import experiment
+    from maglev.sim.plant import rig
 
     spec = sim_spec({"input_class": kind, "low": low, "high": high, "alpha": alpha, "duration_s": duration_s,
                      "seed": seed, "Ts": Ts})
-    return replace(experiment(spec), name=name)
+    return replace(experiment(spec, plant=rig(plant)), name=name)
 
 
 def prepare(raw: IOData, pp: dict, name: str) -> Prepared:

@@ -18,7 +18,7 @@ import numpy as np
 from maglev.estimation import estimate
 from maglev.model import PolyModel
 from maglev.structures import get as structure
-from maglev.study.datasets import Prepared, dataset_bla, load
+from maglev.study.datasets import Prepared, dataset_bla, load, plant_name
 from maglev.threads import single_threaded_blas
 from maglev.validation import ResidResult, compare, naive_fit, resid
 
@@ -108,7 +108,7 @@ def identify(cfg: dict) -> RunOutput:
     }
     true_sys = ref = None
     if cfg["dataset"]["source"] == "sim" and study["true_plant"]:
-        true_sys = true_plant(prep)
+        true_sys = true_plant(prep, plant_name(cfg["dataset"]))
         metrics.update(true_distance(model, true_sys))
         ref = dataset_bla(cfg["dataset"])
         metrics.update(bla_distance(model, ref, prep.val.N))
@@ -141,20 +141,20 @@ def bla_distance(model: PolyModel, ref, n_val: int) -> dict[str, float]:
             "bla_fit_ceiling": ref.fit_ceiling}
 
 
-def true_plant(prep: Prepared):
-    """The simulator's small-signal Jacobian (``Levitator.linearize``) at the record's working point,
-    discrete at the data's Ts: the model of infinitesimal motion, overdamped by the dry friction's
-    slope at rest — not the truth a model identified from large inputs is scored against (that is
-    the BLA, :func:`bla_distance`).
+def true_plant(prep: Prepared, plant: str):
+    """The small-signal Jacobian (``Levitator.linearize``) of the simulator's parameter set ``plant`` at the
+    record's working point, discrete at the data's Ts: the model of infinitesimal motion about a rest,
+    overdamped by the friction's damping at rest — not the truth a model identified from large inputs is
+    scored against (that is the BLA, :func:`bla_distance`).
 
     Compared for G only: the identified model is on detrended data, so offsets do not
     enter; units are the simulator's (A → cm) on both sides.
     """
     import control as ct
 
-    from maglev.sim.plant import Levitator
+    from maglev.sim.plant import rig
 
-    lin = Levitator(zero_at_10=True).linearize(prep.u0, Ts=prep.data.Ts)
+    lin = rig(plant).linearize(prep.u0, Ts=prep.data.Ts)
     s = lin.sys_d
     return ct.ss(s.A, s.B, s.C, s.D, s.dt, name="small-signal Jacobian")
 

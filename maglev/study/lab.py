@@ -14,10 +14,11 @@ from maglev.data import IOData
 from maglev.lab.input_design import choose_alpha, output_spectrum
 from maglev.lab.sampling import rise_time
 from maglev.lab.working_region import working_region
-from maglev.study.datasets import load
+from maglev.study.datasets import load, plant_name
 
 
-def staircase(lab: dict, data_dir: str) -> IOData:
+def staircase(lab: dict, data_dir: str, plant: str) -> IOData:
+    """The staircase record: ``lab.staircase_file``, else simulated on the parameter set ``plant``."""
     if lab["staircase_file"]:
         path = Path(lab["staircase_file"])
         path = path if path.is_absolute() else Path(data_dir) / path
@@ -27,14 +28,15 @@ def staircase(lab: dict, data_dir: str) -> IOData:
         kwargs = {"Ts": 0.001} if path.suffix.lower() == ".csv" else {}
         return reader(path, u=lab["staircase_u"], y=lab["staircase_y"], name="working_region", **kwargs)
     from maglev.sim.labdata import experiment
+    from maglev.sim.plant import rig
 
-    return experiment("working_region")
+    return experiment("working_region", plant=rig(plant))
 
 
 def lab_steps(cfg: dict) -> tuple[dict, dict, dict]:
     """(metrics, figures, summary) of the lab steps for the resolved config ``cfg``."""
     lab = cfg["lab"]
-    stairs = staircase(lab, cfg["data_dir"])
+    stairs = staircase(lab, cfg["data_dir"], plant_name(cfg["dataset"]))
     n = stairs.N - stairs.N % int(lab["levels"])
     stairs = stairs.segment(0, n)
     wr = working_region(stairs.u, stairs.y, int(lab["levels"]), float(lab["tail"]))

@@ -174,15 +174,22 @@ def artifact_json(client, run_id: str, path: str) -> dict | None:
 
 
 def run_config(client, run_id: str) -> dict:
-    """The resolved config a run logged (``config/config.yaml``), with the study's schema re-applied."""
+    """The resolved config a run logged (``config/config.yaml``), with the study's schema re-applied (a
+    simulated dataset logged before ``dataset.plant`` existed keeps the simulator of that time)."""
     from omegaconf import OmegaConf
 
     from maglev.study.config import plain_config
 
+    from maglev.study.datasets import UNNAMED_PLANT
+
     raw = artifact_bytes(client, run_id, "config/config.yaml")
     if raw is None:
         raise SweepError(f"run {run_id} has no config/config.yaml artifact")
-    return plain_config(OmegaConf.create(raw.decode()))
+    cfg = OmegaConf.create(raw.decode())
+    ds = cfg.get("dataset")
+    if ds is not None and ds.get("source") == "sim" and "plant" not in ds:  # logged before dataset.plant existed
+        ds.plant = UNNAMED_PLANT
+    return plain_config(cfg)
 
 
 def load_model(client, run_id: str):

@@ -124,8 +124,9 @@ def test_levitator_bla_depends_on_the_input_class(binary_bla):
     assert big.Ts == small.Ts == 2e-3
     band = (big.w > 30) & (big.w < 300)  # rad/s: around both resonances
     z = np.abs(big.G - small.G)[band] / np.hypot(big.std, small.std)[band]
-    # dry friction: the large binary hops see a resonant gain, small white noise a heavily damped one
-    assert np.median(z) > 10
+    # the friction's damping: the large binary hops see a resonant gain, small white noise a heavily
+    # damped one; the two estimates differ by many times their standard errors
+    assert np.median(z) > 5
     assert np.abs(big.G[band]).max() > 3 * np.abs(small.G[band]).max()
     assert 0 < small.fit_ceiling < 100 and 0 < big.fit_ceiling < 100
 
@@ -141,7 +142,7 @@ def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_
                    / np.linalg.norm(d.y[half:-half])) for d in records[1:]]
     assert np.mean(fits) == pytest.approx(est.fit_ceiling, abs=4.0)
     predicted = []
-    for model in (oe(records[0], 2, 2, 2), arx(records[0], 2, 2, 2)):
+    for model in (oe(records[0], 2, 2, 2), arx(records[0], 1, 1, 2)):  # a resonance, and none
         d = weighted_distance(model.freqresp(est.w), est)
         pred = d ** 2 * est.linear_variance + est.distortion_variance
         mse = np.array([np.mean((r.y[300:] - model.simulate(r.u)[300:]) ** 2) for r in records[1:]])

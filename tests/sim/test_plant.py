@@ -1,6 +1,7 @@
 """Tests of maglev.sim.plant: statics against the force balance, stops, linearisation, noise, speed."""
 
 import re
+from dataclasses import replace
 
 import control as ct
 import numpy as np
@@ -8,7 +9,7 @@ import pytest
 from scipy import signal
 
 from maglev.estimation import arx
-from maglev.sim.plant import Levitator, LevitatorParams, _friction
+from maglev.sim.plant import _REST_AGE, Levitator, LevitatorParams, _Damping, _friction
 from maglev.lab.signals import random_binary
 
 
@@ -57,14 +58,18 @@ def test_seat_and_top_stop_hold():
     assert data.meta["h"][-1] == 8.6 and capped.equilibrium(3.5).upper_at_top
 
 
-@pytest.mark.parametrize("law", ["smooth", "set-valued", "viscous"])
+IN_MOTION = dict(gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0)
+
+
+@pytest.mark.parametrize("law", ["default", "smooth", "set-valued", "viscous"])
 def test_batch_simulation_is_the_loop_over_records(law):
     """``simulate_batch`` (the BLA's many realisations at once) gives each record's noise-free reading,
     for each friction law, with records that stay seated, reach the top stop, or hop about."""
-    lev = {"smooth": Levitator(zero_at_10=True),
+    lev = {"default": Levitator(zero_at_10=True),
+           "smooth": Levitator().with_params(coulomb_lower=0.007, coulomb_upper=0.05, stiction_lower=0.36,
+                                             stiction_upper=0.09),
            "set-valued": Levitator().with_params(v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05),
-           "viscous": Levitator().with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0,
-                                              stiction_upper=0.0)}[law].with_params(h_top=9.0)
+           "viscous": Levitator().with_params(**IN_MOTION)}[law].with_params(h_top=9.0)
     U = np.array([random_binary(1500, 0.1, 0.0, 1.0, seed=1), random_binary(1500, 0.02, 0.0, 4.0, seed=2),
                   np.full(1500, 4.5), random_binary(1500, 0.25, 1.5, 4.0, seed=3)])
     loop = np.array([lev.simulate(u, Ts=0.002, noise=False, start=1.0).y for u in U])
@@ -91,11 +96,11 @@ def _dominant(poles, Ts):
 
 @pytest.mark.parametrize("viscous_only", [False, True])
 def test_linearisation_matches_small_signal_identification(viscous_only):
-    # with dry friction the exact Jacobian includes the friction's slope at rest (overdamped
-    # small-signal modes); without it (dry friction removed) the modes are a light complex pair
+    # a small input about a rest sees the friction's full damping at rest, which the Jacobian
+    # includes; without the quiet-input and aged-contact damping the modes are a light complex pair
     lev = Levitator()
     if viscous_only:
-        lev = lev.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0)
+        lev = lev.with_params(**IN_MOTION)
         assert np.iscomplex(ct.poles(lev.linearize(2.75).sys_c)).any()
     lin = lev.linearize(2.75)
     u = 2.75 + 0.01 * (random_binary(8000, 0.5, -1.0, 1.0, seed=4))
@@ -129,9 +134,9 @@ def test_friction_law_levels_and_slopes():
         assert s == pytest.approx(num, rel=1e-5, abs=1e-9)
 
 
-def test_dry_friction_makes_the_gain_amplitude_dependent():
+def test_friction_makes_the_gain_amplitude_dependent():
     lev = Levitator()
-    base = lev.with_params(coulomb_lower=0.0, coulomb_upper=0.0, stiction_lower=0.0, stiction_upper=0.0)
+    base = lev.with_params(**IN_MOTION)
 
     def gain(plant, amp):
         u = random_binary(6000, 0.25, 2.75 - amp, 2.75 + amp, seed=3)
@@ -139,15 +144,64 @@ def test_dry_friction_makes_the_gain_amplitude_dependent():
         return np.std(d.y) / np.std(d.u)
 
     small, large = gain(lev, 0.05), gain(lev, 1.25)
-    assert large > 2.0 * small  # small motions are held back by the dry friction
-    assert gain(base, 1.25) / gain(base, 0.05) < 1.5  # without it the plant is nearly linear
-    # small-signal (Jacobian) damping includes the friction's slope at rest
+    assert large > 2.0 * small  # small motions are held back by the quiet-input and aged-contact damping
+    assert gain(base, 1.25) / gain(base, 0.05) < 1.5  # without them the plant is nearly linear
+    # small-signal (Jacobian) damping includes the friction's damping at rest
     zeta = [_dominant(ct.poles(lev.linearize(2.75, dry_friction=dry).sys_d), 1e-3)[1] for dry in (True, False)]
     assert zeta[0] > zeta[1]
 
 
+def _mean_damping(p: LevitatorParams, u: np.ndarray, substeps: int = 4) -> float:
+    """Mean quiet-input damping of the upper magnet [N s/m] over the command ``u``, magnets held still."""
+    hs = p.t_phys / substeps
+    damping = _Damping(p, hs, p.t_phys, float(u[0]))
+    total = []
+    for c in u:
+        damping.sample(float(c))
+        for _ in range(substeps):
+            damping.substep(0.0, 0.0)
+            total.append(damping.upper)
+    return 100 * float(np.mean(total)) - p.gamma_upper - p.gamma_aged_upper * 1.0
+
+
+def test_quiet_damping_grades_the_input_class_not_its_range():
+    """The rig's damping depends on the input's class (binary α .25 < α .5 < white noise; notes §4.6,
+    docs/simulator.md), not on its range: the activity divides the band-passed current by its jitter."""
+    p = LevitatorParams(gamma_aged_upper=0.0)
+    rng = np.random.default_rng(5)
+    classes = {"α .25": random_binary(6000, 0.25, 1.5, 4.0, seed=1),
+               "α .5": random_binary(6000, 0.5, 1.5, 4.0, seed=2),
+               "white": rng.uniform(1.5, 4.0, 6000)}
+    damping = {k: _mean_damping(p, u) for k, u in classes.items()}
+    assert damping["α .25"] < damping["α .5"] < damping["white"] < p.gamma_quiet_upper
+    narrow = random_binary(6000, 0.25, 2.25, 3.25, seed=1)  # same class, 40 % of the range
+    assert _mean_damping(p, narrow) < 0.25 * damping["α .5"]  # still graded as α .25
+    # without the jitter the band pass alone cannot tell the classes apart: all are active
+    unscaled = replace(p, jitter_weight=0.0)
+    assert max(_mean_damping(unscaled, u) for u in classes.values()) < 0.05 * p.gamma_quiet_upper
+    assert _mean_damping(p, np.full(500, 2.75)) == pytest.approx(p.gamma_quiet_upper)  # a constant input is quiet
+
+
+def test_contact_ageing_law():
+    """θ grows one second per second at rest and settles at slip_renewal / |v| in steady sliding."""
+    p = LevitatorParams()
+    hs = 1e-3
+    damping = _Damping(p, hs, hs, 2.75)
+    for _ in range(2000):
+        damping.substep(0.0, 0.0)
+    assert damping.age_l == pytest.approx(_REST_AGE + 2.0)
+    aged = p.gamma_lower + p.gamma_quiet_lower + p.gamma_aged_lower * damping.age_l / (damping.age_l + p.age_half)
+    assert 100 * damping.lower == pytest.approx(aged)
+    v = 5.0  # cm/s
+    for _ in range(20000):
+        damping.substep(v, -v)
+    assert damping.age_u == pytest.approx(p.slip_renewal / v, rel=1e-3)
+    fresh = p.gamma_aged_upper * damping.age_u / (damping.age_u + p.age_half)
+    assert 100 * damping.upper == pytest.approx(p.gamma_upper + p.gamma_quiet_upper + fresh)
+
+
 def test_set_valued_stiction_holds_then_releases():
-    sticky = Levitator().with_params(v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05,
+    sticky = Levitator().with_params(**IN_MOTION, v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05,
                                      stiction_lower=0.0, stiction_upper=0.0, gamma_lower=2.0, gamma_upper=0.5)
     held = sticky.simulate(np.full(500, 2.8), start=2.75, noise=False)
     eq = sticky.equilibrium(2.75)
@@ -155,8 +209,9 @@ def test_set_valued_stiction_holds_then_releases():
     moved = sticky.simulate(np.full(500, 3.5), start=2.75, noise=False)
     jump = sticky.equilibrium(3.5).h - eq.h
     assert abs(moved.meta["h"][-1] - eq.h - jump) < 0.5 * jump  # a large force breaks it free
-    creeping = Levitator().simulate(np.full(3000, 2.8), start=2.75, noise=False)  # smooth law: creeps home
-    assert creeping.meta["h"][-1] == pytest.approx(Levitator().equilibrium(2.8).h, abs=1e-6)
+    smooth = sticky.with_params(v_creep=0.713)
+    creeping = smooth.simulate(np.full(3000, 2.8), start=2.75, noise=False)  # smooth law: creeps home
+    assert creeping.meta["h"][-1] == pytest.approx(smooth.equilibrium(2.8).h, abs=1e-6)
 
 
 def test_linear_gain_equals_static_slope():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from hydra import compose, initialize_config_dir
 from hydra.errors import ConfigCompositionException
@@ -113,6 +114,25 @@ def test_semantic_errors_are_refused_before_a_run():
         check(task(cfg_for(["dataset.preprocess.split=1.5"])))
     with pytest.raises(StudyConfigError, match="alpha"):
         check(task(cfg_for(["dataset=binary_a025", "dataset.alpha=null"])))
+    with pytest.raises(StudyConfigError, match=r"dataset.plant must be one of \['dry_friction', 'quiet_ageing'\].*'nope'"):
+        check(task(cfg_for(["dataset.plant=nope"])))
+
+
+def test_simulated_datasets_name_their_plant_and_older_configs_keep_theirs():
+    """Every simulated dataset names the simulator's parameter set; a config logged before the key existed
+    (2026-11-23) is read as the plant of that time, so its runs reproduce (test_reproduce_fixture.py)."""
+    from maglev.sim.plant import DEFAULT_PLANT, PLANTS, rig
+    from maglev.study.datasets import UNNAMED_PLANT, load_raw, plant_name
+
+    ds = task(cfg_for(["dataset=binary_a025", "dataset.duration_s=2"]))["dataset"]
+    assert ds["plant"] == DEFAULT_PLANT and set(PLANTS) == {DEFAULT_PLANT, UNNAMED_PLANT}
+    old = {k: v for k, v in ds.items() if k != "plant"}
+    assert plant_name(old) == UNNAMED_PLANT
+    new_y, old_y = load_raw(ds, "").y, load_raw(old, "").y
+    assert not np.allclose(new_y, old_y)
+    u = load_raw(ds, "").u
+    assert np.array_equal(old_y, rig(UNNAMED_PLANT).simulate(u, seed=ds["seed"]).y)
+    assert rig(UNNAMED_PLANT).params.d == 4.2 and rig().params.d == 10.0
 
 
 def test_schema_is_reapplied_to_a_saved_config():

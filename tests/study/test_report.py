@@ -218,9 +218,11 @@ def test_runs_closer_to_the_bla_simulate_the_validation_data_better(lab_sweep, d
     assert rho.statistic <= -MIN_RANK_CORRELATION, (dataset, rho.statistic)
 
 
-def test_default_orders_leave_no_structure_at_the_edge_of_the_grid(lab_sweep):
-    """The ranking's cautions (its own artifact) hold no order-at-edge caution, and the order each structure's
-    runs support is recomputed here from the runs' logged simulation FITs."""
+def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
+    """The ranking's cautions (its own artifact) name an order-at-edge caution for exactly the structures whose
+    mean simulation FIT, recomputed here from the runs' logged metrics, still rises by more than ORDER_MARGIN
+    from order 4 to 5. On the simulator ARX does (its noise model 1/A needs order 7 before the FIT levels off:
+    README, "Choosing the orders"); ARMAX, OE and BJ level off at 4."""
     from maglev.study.cautions import ORDER_MARGIN
     from maglev.study.ranking import model_order
 
@@ -231,14 +233,16 @@ def test_default_orders_leave_no_structure_at_the_edge_of_the_grid(lab_sweep):
     with open(path) as fh:
         keys = [c["key"] for c in json.load(fh)]
     assert len(keys) == int(ranking.data.metrics["n_cautions"])
-    assert not [k for k in keys if k.startswith("order_at_edge")], keys
     fits = collections.defaultdict(lambda: collections.defaultdict(list))  # structure -> order -> sim FITs
     for ds_runs in model_runs(store).values():
         for r in ds_runs:
             fits[r.data.tags["structure"]][int(model_order(r.data.tags["orders"]))].append(r.data.metrics["val_fit_sim"])
     assert sorted(fits) == ["armax", "arx", "bj", "oe"]
+    rising = set()
     for st, by_order in fits.items():
         mean = {o: sum(v) / len(v) for o, v in sorted(by_order.items())}
-        low, high = list(mean)
-        assert (low, high) == (4, 5) and all(len(v) == 3 for v in by_order.values())
-        assert abs(mean[high] - mean[low]) <= ORDER_MARGIN, (st, mean)  # neither edge: order 5 adds nothing
+        assert list(mean) == [4, 5] and all(len(v) == 3 for v in by_order.values())
+        if mean[5] - mean[4] > ORDER_MARGIN:
+            rising.add(st)
+    assert {k.removeprefix("order_at_edge_") for k in keys if k.startswith("order_at_edge")} == rising
+    assert rising == {"arx"}

@@ -382,6 +382,18 @@ def resonance_rise(b) -> bool:
     return bool(peak) and mag[peak] - mag[0] > 2 * np.hypot(sd[peak], sd[0])
 
 
+def _friction_text(p) -> str:
+    """The friction law F_f of the parameter set ``p`` (maglev.sim.plant.LevitatorParams), with its numbers."""
+    parts = [f"viscous {num(p.gamma_upper, 3)} N s/m on the upper magnet in motion"]
+    if p.gamma_quiet_upper > 0:
+        parts.append(f"up to {num(p.gamma_quiet_upper, 3)} N s/m more while the input is quiet for its class")
+    if p.gamma_aged_upper > 0:
+        parts.append(f"up to {num(p.gamma_aged_upper, 3)} N s/m more on a contact that has rested")
+    if p.coulomb_upper + p.stiction_upper > 0:
+        parts.append(f"Coulomb {num(p.coulomb_upper, 3)} N + Stribeck {num(p.stiction_upper, 3)} N dry friction")
+    return "friction F_f: " + ", ".join(parts)
+
+
 def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataFrame) -> str:
     """The lab's preparation tasks (§4): the physical model, why it is nonlinear, its linearisation at the
     sweep's working point beside the best linear approximations, the structure it suggests against what
@@ -391,11 +403,12 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
     import control as ct
 
     from maglev.lab import averages
-    from maglev.sim.plant import Levitator
-    from maglev.study.datasets import dataset_bla
+    from maglev.sim.plant import DEFAULT_PLANT, rig
+    from maglev.study.datasets import dataset_bla, plant_name
     from maglev.study.figures import preparation_figure
 
-    lev = Levitator(zero_at_10=True)
+    plants = sorted({plant_name(c["dataset"]) for c in configs.values() if c["dataset"]["source"] == "sim"})
+    lev = rig(plants[0] if plants else DEFAULT_PLANT)
     p = lev.params
     u_star = lab.get("lab.u_star")
     Ts = ts_used[0] if ts_used else 0.001
@@ -407,13 +420,14 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
         "y = y_off + h (+ sensor noise, ADC quantisation); I = min(u, i_sat) (current regulator).",
         f"Fitted to the rig (maglev calibrate): a = {num(p.a, 4)}, b = {num(p.b, 3)} cm, n = {num(p.n_coil, 3)}, "
         f"κ = {num(p.kappa, 3)}, c = {num(p.c, 4)} N cm⁴, d = {num(p.d, 3)} cm, i_sat = {num(p.i_sat, 3)} A, "
-        f"y_off = {num(p.y_off, 3)} cm; friction F_f = Coulomb + Stribeck (regularised sign) + viscous, "
-        f"e.g. Coulomb {num(p.coulomb_upper, 3)} N on the upper magnet (docs/simulator.md).",
+        f"y_off = {num(p.y_off, 3)} cm; {_friction_text(p)} (docs/simulator.md; simulator parameter set "
+        f"{', '.join(plants) or DEFAULT_PLANT}).",
     ]
     nonlinear = ("It is nonlinear because the coil and repulsion forces fall off with a power of distance "
-                 f"(n = {num(p.n_coil, 3)} and 4), the bushings' dry friction holds small motions and releases "
-                 "large ones (the response depends on the input's amplitude), the lower magnet rests on its seat "
-                 f"below lift-off, the upper one hits a stop, and the regulator saturates at {num(p.i_sat, 3)} A.")
+                 f"(n = {num(p.n_coil, 3)} and 4), the bushings' friction holds small motions and releases "
+                 "large ones (the response depends on the input's amplitude and class), the lower magnet rests on "
+                 f"its seat below lift-off, the upper one hits a stop, and the regulator saturates at "
+                 f"{num(p.i_sat, 3)} A.")
     parts = [bullets(esc(t) for t in model), para(esc(nonlinear))]
     if u_star is None:
         return section("preparation", "Preparation tasks", *parts,
@@ -445,8 +459,8 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
                          f"{num(c['dataset']['low'])}–{num(c['dataset']['high'])} A): gain {num(abs(b.G[keep][0]), 3)} "
                          f"cm/A at {num(b.w[keep][0], 1)} rad/s, {resonance}; simulation FIT ceiling "
                          f"{num(b.fit_ceiling, 1)} %.")
-    facts.append("The Jacobian is the model of infinitesimal motion, overdamped by the dry friction's slope at "
-                 "rest; the lab's inputs move the magnets far beyond that, so the identified models are compared "
+    facts.append("The Jacobian is the model of infinitesimal motion about a rest, overdamped by the friction's "
+                 "damping at rest; the lab's inputs move the magnets far beyond that, so the identified models are compared "
                  "with the best linear approximation of their input class, as in the figure below.")
     best = table_.iloc[0]
     suggestion = (f"The physical model suggests {n_states} poles in G (OE/BJ nf = {n_states}, ARX/ARMAX "
