@@ -112,13 +112,15 @@ def prepare_blas(configs: list[dict]):
     import multiprocessing
 
     from maglev.sim.bla import is_cached
+    from maglev.sim.plant import rig
 
     wanted: dict[str, dict] = {}
     for cfg in configs:
         ds = cfg["dataset"]
         if ds["source"] == "sim" and cfg["study"]["true_plant"]:
             wanted.setdefault(json.dumps(ds, sort_keys=True), ds)
-    missing = [ds for ds in wanted.values() if not is_cached(sim_spec(ds), preprocess=_bla_preprocess(ds))]
+    missing = [ds for ds in wanted.values()
+               if not is_cached(sim_spec(ds), rig(plant_name(ds)), preprocess=_bla_preprocess(ds))]
     if not missing:
         return None
     proc = multiprocessing.get_context("spawn").Process(target=_estimate_blas, args=(missing,), daemon=True,

@@ -14,6 +14,7 @@ from maglev.data import IOData
 from maglev.lab.input_design import choose_alpha, output_spectrum
 from maglev.lab.sampling import rise_time
 from maglev.lab.working_region import working_region
+from maglev.sim.plant import DEFAULT_PLANT
 from maglev.study.datasets import load, plant_name
 
 
@@ -36,7 +37,8 @@ def staircase(lab: dict, data_dir: str, plant: str) -> IOData:
 def lab_steps(cfg: dict) -> tuple[dict, dict, dict]:
     """(metrics, figures, summary) of the lab steps for the resolved config ``cfg``."""
     lab = cfg["lab"]
-    stairs = staircase(lab, cfg["data_dir"], plant_name(cfg["dataset"]))
+    ds = cfg["dataset"]
+    stairs = staircase(lab, cfg["data_dir"], plant_name(ds) if ds["source"] == "sim" else DEFAULT_PLANT)
     n = stairs.N - stairs.N % int(lab["levels"])
     stairs = stairs.segment(0, n)
     wr = working_region(stairs.u, stairs.y, int(lab["levels"]), float(lab["tail"]))
