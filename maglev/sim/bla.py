@@ -45,7 +45,7 @@ from scipy import signal
 from maglev.data import IOData
 from maglev.locks import exclusive
 from maglev.sim.labdata import ExperimentSpec, input_signal
-from maglev.sim.plant import Levitator
+from maglev.sim.plant import Levitator, rig
 
 __all__ = ["Preprocess", "FrequencyResponse", "BLA", "bla", "frequency_response", "weighted_distance",
            "relative_distance", "record_distance", "validation_records", "is_cached", "SEGMENT_S",
@@ -282,7 +282,7 @@ def cache_key(spec: ExperimentSpec, plant: Levitator, preprocess: Preprocess, re
 def is_cached(spec: ExperimentSpec, plant: Levitator | None = None, *, preprocess: Preprocess | None = None,
               realisations: int = REALISATIONS, segment_s: float = SEGMENT_S) -> bool:
     """Whether :func:`bla` with these arguments (and ``cache=True``) finds its estimate on disk."""
-    plant = Levitator(zero_at_10=True) if plant is None else plant
+    plant = rig() if plant is None else plant
     key = cache_key(spec, plant, preprocess or Preprocess(), realisations, segment_s)
     return (cache_dir() / f"{key}.npz").is_file()
 
@@ -324,7 +324,7 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
     """The best linear approximation of ``plant`` for the input class ``spec`` (kind uniform or binary).
 
     ``plant``: a :class:`~maglev.sim.plant.Levitator` (default: the lab's,
-    ``Levitator(zero_at_10=True)``), simulated noise-free; or any function
+    ``rig()``), simulated noise-free; or any function
     ``(u, seed) -> y`` (not cached).  Each of ``realisations`` records of the class
     (seeds ``SEED0 + m``, the spec's length and Ts) is preprocessed by ``preprocess``
     (default: the study's trim 2000, detrend, no decimation), so G is on the time base
@@ -337,7 +337,7 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
         raise ValueError(f"the BLA needs a stationary random input class (kind 'uniform' or 'binary'), "
                          f"got kind={spec.kind!r}")
     preprocess = preprocess or Preprocess()
-    plant = Levitator(zero_at_10=True) if plant is None else plant
+    plant = rig() if plant is None else plant
     if not isinstance(plant, Levitator):
         return _estimate(spec, _one_by_one(plant), preprocess, realisations, segment_s)
     key = cache_key(spec, plant, preprocess, realisations, segment_s)

@@ -39,7 +39,7 @@ from scipy import optimize, signal
 
 from maglev.sim import bla
 from maglev.data import IOData
-from maglev.sim.plant import Levitator, LevitatorParams
+from maglev.sim.plant import Levitator, LevitatorParams, rig
 from maglev.refdata import load_record, refdata_dir
 from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
                                 FRF_PREPROCESS, FRF_SEGMENT_S, FRF_TOLERANCE_DB, MODE_TOLERANCE, POLE_RECORDS,
@@ -337,7 +337,7 @@ def main(argv: list[str] | None = None) -> int:
     if root is None:
         print("no reference data found: set MAGLEV_REFDATA or pass --refdata", file=sys.stderr)
         return 2
-    lev = Levitator(zero_at_10=True)
+    lev = rig()
     if not args.no_fit:
         stair = load_record("working_region", root)
         lev = fit_static(stair, lev)

@@ -24,7 +24,7 @@ from scipy.io import savemat
 
 from maglev.lab import signals
 from maglev.data import IOData
-from maglev.sim.plant import LABEL_TS, U_MAX, U_MIN, Levitator
+from maglev.sim.plant import LABEL_TS, U_MAX, U_MIN, Levitator, rig
 from maglev.plots import U_UNIT, Y_UNIT
 
 __all__ = ["ExperimentSpec", "CATALOGUE", "experiment", "input_signal", "write_catalogue", "main"]
@@ -113,7 +113,7 @@ def experiment(name_or_spec: str | ExperimentSpec, seed: int | None = None,
     """Simulate one experiment, given a catalogue name or a spec; ``seed`` overrides the spec's.
 
     The same seed drives the input signal and the plant's noise, so a (spec, seed)
-    pair always gives the same record.  ``plant`` defaults to ``Levitator(zero_at_10=True)``
+    pair always gives the same record.  ``plant`` defaults to ``rig()``
     (the lab's logger, where the staircase's 10 A level reads as 0 A).
     """
     if isinstance(name_or_spec, str):
@@ -126,7 +126,7 @@ def experiment(name_or_spec: str | ExperimentSpec, seed: int | None = None,
         raise ValueError(f"name_or_spec must be a catalogue name or an ExperimentSpec, got {name_or_spec!r}")
     if seed is not None:
         spec = replace(spec, seed=int(seed))
-    plant = plant or Levitator(zero_at_10=True)
+    plant = plant or rig()
     data = plant.simulate(input_signal(spec), Ts=spec.Ts, seed=spec.seed, name=name)
     return replace(data, meta={**data.meta, "spec": asdict(spec)})
 

@@ -9,7 +9,7 @@ import pytest
 
 from maglev import refdata
 from maglev.sim import calibrate, sim_vs_real
-from maglev.sim.plant import Levitator
+from maglev.sim.plant import Levitator, rig
 from maglev.sim.sim_vs_real import stair_averages
 
 REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
@@ -38,21 +38,12 @@ def test_static_fit_recovers_a_curve_close_to_the_real_one():
 
 
 # ---------------------------------------------------------------------- dynamics (issues #3, #15)
-def _previous_defaults() -> Levitator:
-    """The defaults before issue 15's fifth attempt was adopted (commit 118cdaf): Coulomb + Stribeck friction."""
-    return Levitator(zero_at_10=True).with_params(
-        a=0.3563, b=1.392, n_coil=1.275, kappa=0.1965, c=2.21e4, d=4.2, gamma_lower=2.629, gamma_upper=0.07442,
-        coulomb_lower=0.006933, coulomb_upper=0.05094, stiction_lower=0.3606, stiction_upper=0.08819,
-        v_stribeck=1.316, v_creep=0.713, i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81,
-        gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0, switch_noise=0.0)
-
-
 
 @needs_real
 @pytest.mark.realdata
-def test_friction_defaults_meet_every_scored_check_and_beat_the_viscous_only_calibration():
+def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_and_the_previous_defaults():
     targets = calibrate.friction_targets(REAL)
-    fitted = Levitator(zero_at_10=True)
+    fitted = rig()
     errors, penalty = calibrate.friction_errors(fitted, targets)
     legacy = {k: v for k, v in errors.items() if k.endswith(calibrate.LEGACY_CHECKS) and not k.startswith("armax")}
     # ωn and ζ of five identified modes and the rise time, each within its tolerance
@@ -65,10 +56,10 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_viscous_only_cal
                                    gamma_aged_upper=0.0)
     errors_motion, _ = calibrate.friction_errors(in_motion, targets)
     assert max(errors_motion.get(k, math.inf) for k in legacy) > 1.0
-    # and the defaults score better than the previous calibration (Coulomb + Stribeck friction, d = 4.2 cm)
+    # and the defaults score better than the previous defaults (Coulomb + Stribeck friction, d = 4.2 cm)
     cost = calibrate.friction_cost(fitted, targets)
     assert cost < calibrate.friction_cost(in_motion, targets)
-    assert cost < 0.7 * calibrate.friction_cost(_previous_defaults(), targets)
+    assert cost < 0.7 * calibrate.friction_cost(rig("dry_friction"), targets)
     # one evaluation of the fit itself runs and returns a plant (maxfev=1: the start)
     out = calibrate.fit_friction(fitted, REAL, maxfev=1, targets=targets)
     for name in calibrate.FRICTION_PARAMS:
