@@ -513,7 +513,7 @@ class _Damping:
         self.inv_renewal = 1.0 / p.slip_renewal
         self.filt = [cur0, cur0, cur0, cur0]  # fast and slow low passes of the current, lower then upper
         self.env_l = self.env_u = 0.0 * cur0
-        self.jitter, self.prev, self.cur = 0.0 * cur0, cur0, cur0
+        self.jitter, self.cur = 0.0 * cur0, cur0
         self.age_l = self.age_u = _REST_AGE + 0.0 * cur0
         self._gammas()
 
@@ -530,8 +530,8 @@ class _Damping:
 
     def sample(self, cur: float | np.ndarray) -> None:
         """A new logged sample with coil current ``cur`` begins: update the jitter."""
-        self.jitter = self.jitter + self.jitter_rate * (abs(cur - self.prev) - self.jitter)
-        self.prev = self.cur = cur
+        self.jitter = self.jitter + self.jitter_rate * (abs(cur - self.cur) - self.jitter)
+        self.cur = cur
 
     def substep(self, vz: float | np.ndarray, vh: float | np.ndarray) -> None:
         """After the velocity update: age the contacts, follow the activity, refresh the damping."""
@@ -612,7 +612,7 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     step_l = _velocity_step(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, smooth)
     step_u = _velocity_step(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, smooth)
     cur_list = cur.tolist()
-    damping = _Damping(p, hs, dt, cur_list[0] if cur_list else 0.0)
+    damping = _Damping(p, hs, dt, cur_list[0])
     z, h, vz, vh = z0, h0, 0.0, 0.0
     zs = [0.0] * len(cur)
     hs_out = [0.0] * len(cur)
