@@ -21,6 +21,7 @@ import shutil
 import subprocess
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.stats import spearmanr
 
@@ -114,6 +115,7 @@ def test_report_has_every_section_with_numbers_from_the_runs(lab_sweep):
     lin = Levitator(zero_at_10=True).linearize(parent["lab.u_star"], Ts=m["Ts"])
     assert f"static gain {lin.dc_gain:.3f} cm/A" in prep and f"Working point u* = {parent['lab.u_star']:.2f} A" in prep
     assert "def get_average(" in prep and "def get_stationary_averages(" in prep
+    assert "compared with the best linear approximation of their input class" in prep  # the sweep has BLAs
     from maglev.study.datasets import dataset_bla
     from maglev.study.store import run_config
 
@@ -246,3 +248,13 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
             rising.add(st)
     assert {k.removeprefix("order_at_edge_") for k in keys if k.startswith("order_at_edge")} == rising
     assert rising == {"arx"}
+
+
+def test_preparation_without_simulated_data_claims_no_bla_comparison():
+    """A sweep of recorded data only (lab_real) has no best linear approximation: the preparation section says so
+    instead of pointing at BLAs the figure does not show."""
+    from maglev.study.report.sections import preparation
+
+    best = pd.DataFrame([{"name": "bj 3-3-3-3-5 · real_binary_signal_2", "structure": "bj", "orders": "[3 3 3 3 5]"}])
+    prep = preparation({"lab.u_star": 2.75}, [0.002], {}, best)
+    assert "This sweep has no simulated dataset" in prep and "compared with the best linear approximation" not in prep

@@ -419,7 +419,7 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
         "m ḧ = −κ I / (a (h + b)^n) + c / (h − z + d)^4 − m g − F_f(ḣ)   (coil pull, repulsion, gravity, friction)",
         "y = y_off + h (+ sensor noise, ADC quantisation); I = min(u, i_sat) (current regulator).",
         f"Fitted to the rig (maglev calibrate): a = {num(p.a, 4)}, b = {num(p.b, 3)} cm, n = {num(p.n_coil, 3)}, "
-        f"κ = {num(p.kappa, 3)}, c = {num(p.c, 4)} N cm⁴, d = {num(p.d, 3)} cm, i_sat = {num(p.i_sat, 3)} A, "
+        f"κ = {num(p.kappa, 3)}, c = {num(p.c, 0)} N cm⁴, d = {num(p.d, 3)} cm, i_sat = {num(p.i_sat, 3)} A, "
         f"y_off = {num(p.y_off, 3)} cm; {_friction_text(p)} (docs/simulator.md; simulator parameter set "
         f"{', '.join(plants) or DEFAULT_PLANT}).",
     ]
@@ -460,8 +460,11 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
                          f"cm/A at {num(b.w[keep][0], 1)} rad/s, {resonance}; simulation FIT ceiling "
                          f"{num(b.fit_ceiling, 1)} %.")
     facts.append("The Jacobian is the model of infinitesimal motion about a rest, overdamped by the friction's "
-                 "damping at rest; the lab's inputs move the magnets far beyond that, so the identified models are compared "
-                 "with the best linear approximation of their input class, as in the figure below.")
+                 "damping at rest; the lab's inputs move the magnets far beyond that, so "
+                 + ("the identified models are compared with the best linear approximation of their input class, as "
+                    "in the figure below." if blas else
+                    "it is not what a model identified from them should match. This sweep has no simulated dataset, "
+                    "so it has no best linear approximation to compare with; the figure shows the Jacobian alone."))
     best = table_.iloc[0]
     suggestion = (f"The physical model suggests {n_states} poles in G (OE/BJ nf = {n_states}, ARX/ARMAX "
                   f"na = {n_states}) and a delay of about {lin.delay_samples + 1} sample(s). ")
