@@ -120,6 +120,32 @@ class FrequencyResponse:
     def magnitude_db(self) -> np.ndarray:
         return 20 * np.log10(np.abs(self.G))
 
+    def band_rms(self, lo: float, hi: float) -> tuple[float, float]:
+        """(coherent, incoherent) rms of the output over ``lo <= w < hi`` rad/s.
+
+        sqrt(Σ γ² S_yy df) is the part of y the input explains linearly (|S_yu|² / S_uu: the
+        output of the estimated G), sqrt(Σ (1 - γ²) S_yy df) the rest (noise, nonlinear
+        distortion); their squares add up to the band's output power.  Why: two records
+        with the same output std can differ in how much of it the input drives; on the rig's
+        ``white_noise_2`` most of the output is incoherent, while the simulator's replay of
+        the same input is mostly coherent.
+
+        Each Welch bin stands for ``df`` around its frequency (the DC bin for half of it),
+        so the band is resolved to the bins whose frequency lies in it.  The segments' leakage
+        leaves a small incoherent floor even without noise: a few % of the coherent rms for a
+        response that decays in ≈ 25 ms, with 1 s segments.  Raises ValueError unless
+        0 <= lo < hi and the band holds at least one bin.
+        """
+        if not 0.0 <= lo < hi:
+            raise ValueError(f"band_rms needs 0 <= lo < hi rad/s, got lo={lo!r}, hi={hi!r}")
+        inside = (self.w >= lo) & (self.w < hi)
+        if not inside.any():
+            raise ValueError(f"band {lo!r} <= w < {hi!r} rad/s holds none of the estimate's frequencies "
+                             f"(0 .. {self.w[-1]:g} rad/s, {2 * math.pi * self.df:g} apart)")
+        coh = np.clip(self.coherence[inside], 0.0, 1.0)
+        power = self.Syy[inside] * self.df
+        return float(math.sqrt(np.sum(coh * power))), float(math.sqrt(np.sum((1.0 - coh) * power)))
+
     def bounds(self, level: float = 0.99, name: str | None = None) -> "FrequencyBounds":
         """The estimate with pointwise bounds at ``level`` (ω > 0), for :func:`maglev.plots.plot_bode`.
 

@@ -2,8 +2,9 @@
 
 Known truths: on a linear plant the BLA is its transfer function (coverage of the
 standard error); on the levitator it depends on the input class; the identity
-E|y - G u|² = ‖G_BLA - G‖²_Φu + var(y_s) holds for any linear G; the cache returns
-what it stored.  Short classes and few realisations keep the tests fast.
+E|y - G u|² = ‖G_BLA - G‖²_Φu + var(y_s) holds for any linear G; a record's coherent and
+incoherent output split into G u and the noise; the cache returns what it stored.  Short
+classes and few realisations keep the tests fast.
 """
 
 import math
@@ -11,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy import signal
 
 from maglev.sim import bla as bla_mod
 from maglev.sim.bla import (BLA, Preprocess, bla, frequency_response, record_distance, relative_distance,
@@ -189,3 +191,44 @@ def test_bad_input_is_named():
         bla(BINARY, _linear_plant, realisations=1)
     with pytest.raises(ValueError, match="Preprocess.decimate"):
         Preprocess(decimate=0)
+
+
+def test_band_rms_splits_the_output_into_the_filtered_input_and_the_noise():
+    """y = G u + e, u and e white and independent: in each band the coherent rms is the rms of G u
+    (from the true G: sqrt(∫ |G|² S_uu df)), the incoherent one e's (σe sqrt(2 Ts Δf)); their squares
+    add up to the band's output power."""
+    Ts, su, se = 1e-3, 1.0, 0.5
+    a = np.real(np.poly([0.9 * np.exp(0.15j), 0.9 * np.exp(-0.15j)]))  # a resonance near 150 rad/s
+    b = [0.0, 0.02, 0.01]
+    rng = np.random.default_rng(5)
+    u = su * rng.standard_normal(400_000)
+    e = se * rng.standard_normal(u.size)
+    Gu = signal.lfilter(b, a, u)
+    frf = frequency_response(IOData(u=u, y=Gu + e, Ts=Ts), segment_s=1.0)
+    assert frf.df == pytest.approx(1.0)
+    # band edges halfway between Welch bins (1 Hz apart), so the bins in a band cover exactly [lo, hi)
+    for lo_hz, hi_hz in ((0.0, 8.5), (8.5, 24.5), (24.5, 64.5)):
+        lo, hi = 2 * math.pi * lo_hz, 2 * math.pi * hi_hz
+        w = np.linspace(lo, hi, 20_001)
+        G = signal.freqz(b, a, worN=w * Ts)[1]
+        coherent = math.sqrt(np.trapezoid(np.abs(G) ** 2 * 2 * su ** 2 * Ts, w / (2 * math.pi)))
+        incoherent = se * math.sqrt(2 * Ts * (hi - lo) / (2 * math.pi))
+        assert 0.5 < coherent / incoherent < 3  # both parts matter in every band
+        coh, incoh = frf.band_rms(lo, hi)
+        assert coh == pytest.approx(coherent, rel=0.04), (lo, hi)
+        assert incoh == pytest.approx(incoherent, rel=0.04), (lo, hi)
+        inside = (frf.w >= lo) & (frf.w < hi)
+        assert coh ** 2 + incoh ** 2 == pytest.approx(np.sum(frf.Syy[inside]) * frf.df, rel=1e-12)
+        # without the noise the output is (almost) all coherent: leakage leaves a floor of a few %
+        clean = frequency_response(IOData(u=u, y=Gu, Ts=Ts), segment_s=1.0).band_rms(lo, hi)
+        assert 0 < clean[1] < 0.1 * clean[0]
+
+
+@pytest.mark.parametrize("lo, hi", [(-1.0, 30.0), (30.0, 30.0), (150.0, 30.0), (math.nan, 30.0), (1.0, 2.0)])
+def test_band_rms_rejects_a_band_that_is_not_one(lo, hi):
+    w = np.linspace(0, np.pi / 1e-3, 501)  # 2π rad/s apart: (1, 2) holds no frequency
+    ones = np.ones(w.size)
+    frf = bla_mod.FrequencyResponse(w=w, G=ones.astype(complex), std=0 * ones, coherence=ones, Suu=ones, Syy=ones,
+                                    Ts=1e-3, averages=1)
+    with pytest.raises(ValueError, match=f"lo={lo!r}, hi={hi!r}|{lo!r} <= w < {hi!r}"):
+        frf.band_rms(lo, hi)

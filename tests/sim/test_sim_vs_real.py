@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from maglev.sim import sim_vs_real
+from maglev.sim import bla as bla_mod, sim_vs_real
 from maglev.sim.bla import FrequencyResponse
 from maglev.sim.plant import Levitator
 from maglev.refdata import KTH_2022, load_record
@@ -74,6 +74,45 @@ STD_FACTOR = 2.0  # every record's simulated output std within this factor of th
 @pytest.fixture(scope="module")
 def full_comparison():
     return sim_vs_real.compare(Levitator(zero_at_10=True), REAL)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_table_prints_each_records_coherent_and_incoherent_output_per_band(full_comparison):
+    split = full_comparison.split
+    assert list(split) == list(sim_vs_real.SPLIT_RECORDS)
+    table = full_comparison.table().splitlines()
+    head = next(i for i, line in enumerate(table) if line.startswith("Output explained by the input"))
+    assert head > next(i for i, line in enumerate(table) if line.startswith("Output std after"))
+    end = table.index("", head) if "" in table[head:] else len(table)
+    section = table[head + 3:end]  # after the header and the two column-title lines
+    assert len(section) == 2 * len(sim_vs_real.SPLIT_RECORDS)  # a real and a sim line per record
+    lev = Levitator(zero_at_10=True)
+    for rec in sim_vs_real.SPLIT_RECORDS:
+        rows = [i for i, line in enumerate(section) if line.split()[:1] == [rec]]
+        assert len(rows) == 1, rec  # one real line, the sim line under it
+        real_row, sim_row = section[rows[0]].split(), section[rows[0] + 1].split()
+        assert real_row[-5] == "real" and sim_row[0] == "sim", (real_row, sim_row)
+        assert " ".join(real_row[1:-5]) == sim_vs_real.RECORD_INPUTS[rec]
+        printed = [[tuple(map(float, cell.split("|"))) for cell in row[-4:]] for row in (real_row, sim_row)]
+        # the real record's numbers are band_rms of its Welch estimate with the FRF settings
+        real = load_record(rec, REAL)
+        frf = bla_mod.frequency_response(sim_vs_real.FRF_PREPROCESS.apply(real), sim_vs_real.FRF_SEGMENT_S)
+        expected = [frf.band_rms(lo, hi) for lo, hi in sim_vs_real.SPLIT_BANDS]
+        assert np.array(printed[0]) == pytest.approx(np.array(expected), abs=0.51e-4)  # printed %.4f
+        assert np.array(printed[1]) == pytest.approx(np.array(split[rec][1]), abs=0.51e-4)
+        if rec == "white_noise_2":  # and the simulated ones are the replay's (compare() uses seed 1)
+            replay = lev.simulate(real.u, Ts=real.Ts, seed=1)
+            assert sim_vs_real.output_split(replay) == pytest.approx(split[rec][1], rel=1e-12)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_small_white_noise_leaves_the_rigs_slow_output_mostly_unexplained(full_comparison):
+    # a measured property of the rig's record: below 30 rad/s the input explains little of white_noise_2's output
+    (coherent, incoherent), *_ = full_comparison.split["white_noise_2"][0]
+    assert sim_vs_real.SPLIT_BANDS[0] == (0.0, 30.0)
+    assert incoherent > coherent
 
 
 @needs_real
