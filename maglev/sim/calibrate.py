@@ -42,12 +42,12 @@ from maglev.data import IOData
 from maglev.sim.plant import Levitator, LevitatorParams, rig
 from maglev.refdata import load_record, refdata_dir
 from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
-                                FRF_PREPROCESS, FRF_SEGMENT_S, FRF_TOLERANCE_DB, MODE_TOLERANCE, POLE_RECORDS,
+                                FRF_TOLERANCE_DB, MODE_TOLERANCE, POLE_RECORDS,
                                 RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS, STAIR_TAIL, STATIC_NOISE_MULTIPLE,
                                 STD_RECORDS, STD_TOLERANCE, TRANSIENT_FRACTION, WHITE_RECORD, Comparison, Mode,
                                 armax_errors, armax_modes_of, compare, dominant_mode_of, fourth_order_modes_of,
-                                least_damped, noise_psd, output_std, quantisation_step, stair_averages, stair_step,
-                                two_modes)
+                                least_damped, noise_psd, output_std, quantisation_step, record_frf, stair_averages,
+                                stair_step, two_modes)
 
 __all__ = ["fit_static", "fit_noise", "fit_friction", "friction_targets", "friction_errors",
            "friction_cost", "main"]
@@ -141,11 +141,7 @@ def friction_targets(root: Path | None = None) -> FrictionTargets:
         second_mode=least_damped(fourth_order_modes_of(inputs[WHITE_RECORD])),
         stair=stair, y_bar=stair_averages(stair)[1], static_tolerance=STATIC_NOISE_MULTIPLE * noise_std,
         rise=rise, armax=two_modes(armax_modes_of(inputs[ARMAX_RECORD])),
-        frf={r: _frf(inputs[r]) for r in FRF_RECORDS})
-
-
-def _frf(data: IOData) -> bla.FrequencyResponse:
-    return bla.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
+        frf={r: record_frf(inputs[r]) for r in FRF_RECORDS})
 
 
 LEGACY_CHECKS = ("wn", "zeta", "rise time")  # key endings of the checks the defaults meet (issue 3)
@@ -221,7 +217,7 @@ def _issue15_errors(sims: dict[str, IOData], tg: FrictionTargets) -> dict[str, f
         errors[f"armax {key}"] = MISSING_MODE_ERROR if math.isnan(err) else abs(err) / tol
     for rec, real in (tg.frf or {}).items():
         band = (real.coherence >= FRF_COHERENCE) & (real.w > 0)
-        sim = _frf(sims[rec])
+        sim = record_frf(sims[rec])
         diff = 20 * np.log10(np.abs(sim.G[band]) / np.abs(real.G[band]))
         errors[f"frf {rec}"] = float(np.max(np.abs(diff))) / FRF_TOLERANCE_DB if diff.size else MISSING_MODE_ERROR
     return errors

@@ -62,7 +62,7 @@ from maglev.refdata import load_record
 
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
-           "output_std", "output_split", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
+           "output_std", "output_split", "record_frf", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
 STAIR_TAIL = 50.0
@@ -139,14 +139,18 @@ def output_std(data: IOData) -> float:
     return float(np.std(data.trim(TRANSIENT_FRACTION).y))
 
 
-def output_split(data: IOData, bands: tuple[tuple[float, float], ...] = SPLIT_BANDS) -> list[tuple[float, float]]:
-    """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.sim.bla.FrequencyResponse.band_rms`).
+def record_frf(data: IOData) -> bla_mod.FrequencyResponse:
+    """A record's Welch frequency-response estimate with the comparison's settings (``FRF_PREPROCESS``,
+    ``FRF_SEGMENT_S``): the same for a real record and a simulated replay."""
+    return bla_mod.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
 
-    From the record's Welch estimate with the FRF comparison's settings (``FRF_PREPROCESS``,
-    ``FRF_SEGMENT_S``).  Why: the output std alone cannot tell an output the input drives
+
+def output_split(data: IOData, bands: tuple[tuple[float, float], ...] = SPLIT_BANDS) -> list[tuple[float, float]]:
+    """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.sim.bla.FrequencyResponse.band_rms`)
+    of its :func:`record_frf`.  Why: the output std alone cannot tell an output the input drives
     from one it does not.
     """
-    frf = bla_mod.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
+    frf = record_frf(data)
     return [frf.band_rms(lo, hi) for lo, hi in bands]
 
 
@@ -268,8 +272,7 @@ def compare_frf(lev: Levitator, record: str, root: Path | None = None, real: IOD
     real = real if real is not None else load_record(record, root)
     spec = FRF_CLASSES[record]
     sim = bla_mod.bla(spec, lev, preprocess=FRF_PREPROCESS, realisations=realisations, segment_s=FRF_SEGMENT_S)
-    return FrfComparison(record=record, real=bla_mod.frequency_response(FRF_PREPROCESS.apply(real), FRF_SEGMENT_S),
-                         sim=sim)
+    return FrfComparison(record=record, real=record_frf(real), sim=sim)
 
 
 # ---------------------------------------------------------------------- the comparison
