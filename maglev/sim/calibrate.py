@@ -41,13 +41,13 @@ from maglev.sim import bla
 from maglev.data import IOData
 from maglev.sim.plant import Levitator, LevitatorParams, rig
 from maglev.refdata import load_record, refdata_dir
-from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
-                                FRF_TOLERANCE_DB, MODE_TOLERANCE, POLE_RECORDS,
-                                RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS, STAIR_TAIL, STATIC_NOISE_MULTIPLE,
-                                STD_RECORDS, STD_TOLERANCE, TRANSIENT_FRACTION, WHITE_RECORD, Comparison, Mode,
-                                armax_errors, armax_modes_of, compare, dominant_mode_of, fourth_order_modes_of,
-                                least_damped, noise_psd, output_std, quantisation_step, record_frf, stair_averages,
-                                stair_step, two_modes)
+from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_TOLERANCE_DB,
+                                    MODE_TOLERANCE, POLE_RECORDS, RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS,
+                                    STAIR_TAIL, STATIC_NOISE_MULTIPLE, STD_RECORDS, STD_TOLERANCE,
+                                    TRANSIENT_FRACTION, WHITE_RECORD, Comparison, FrfComparison, Mode,
+                                    armax_errors, armax_modes_of, compare, dominant_mode_of, fourth_order_modes_of,
+                                    least_damped, noise_psd, output_std, quantisation_step, record_frf,
+                                    stair_averages, stair_step, two_modes)
 
 __all__ = ["fit_static", "fit_noise", "fit_friction", "friction_targets", "friction_errors",
            "friction_cost", "main"]
@@ -216,10 +216,8 @@ def _issue15_errors(sims: dict[str, IOData], tg: FrictionTargets) -> dict[str, f
         tol = ARMAX_WN_TOLERANCE if key.endswith("wn") else ARMAX_ZETA_TOLERANCE
         errors[f"armax {key}"] = MISSING_MODE_ERROR if math.isnan(err) else abs(err) / tol
     for rec, real in (tg.frf or {}).items():
-        band = (real.coherence >= FRF_COHERENCE) & (real.w > 0)
-        sim = record_frf(sims[rec])
-        diff = 20 * np.log10(np.abs(sim.G[band]) / np.abs(real.G[band]))
-        errors[f"frf {rec}"] = float(np.max(np.abs(diff))) / FRF_TOLERANCE_DB if diff.size else MISSING_MODE_ERROR
+        gap = FrfComparison(record=rec, real=real, sim=record_frf(sims[rec])).max_db
+        errors[f"frf {rec}"] = MISSING_MODE_ERROR if math.isnan(gap) else gap / FRF_TOLERANCE_DB
     return errors
 
 

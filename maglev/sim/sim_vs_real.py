@@ -224,11 +224,12 @@ def _modes_text(modes: list[Mode]) -> str:
 # ---------------------------------------------------------------------- frequency domain
 @dataclass(frozen=True)
 class FrfComparison:
-    """A real record's Welch FRF against the simulator's BLA for the same input class."""
+    """A real record's Welch FRF against the simulator's BLA for the same input class (or, in the
+    calibration's cost, against the Welch FRF of the simulator's replay of the record)."""
 
     record: str
     real: bla_mod.FrequencyResponse
-    sim: bla_mod.BLA
+    sim: bla_mod.FrequencyResponse
 
     @property
     def band(self) -> np.ndarray:
