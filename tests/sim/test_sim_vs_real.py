@@ -228,12 +228,12 @@ def test_the_simulated_plant_offers_armax_both_modes_the_sensor_noise_line_can_h
     assert all(sim_vs_real.two_modes(sim_vs_real.armax_modes_of(no_line)))
 
 
-# Issue 15's done-when checks the defaults do not meet yet (docs/simulator.md, "Not matched"):
+# Issue 15's done-when checks the defaults do not meet yet (docs/simulator.md, "Not met, and why"):
 # strict xfail, so the suite says so when a new plant model meets them.
 @needs_real
 @pytest.mark.realdata
-@pytest.mark.xfail(strict=True, reason="one ARMAX mode near 124 rad/s: the sensor-noise line takes two poles; "
-                   "noise-free the fast mode is 2.7x too damped (docs/simulator.md)")
+@pytest.mark.xfail(strict=True, reason="ARMAX finds both modes, but the fast one at ζ 0.18 against the rig's 0.11: "
+                   "the repulsion's curvature over the gap's excursions (docs/simulator.md, seventh look)")
 def test_armax_modes_of_binary_signal_2_match_the_rig(full_comparison):
     real, sim = (sim_vs_real.two_modes(m) for m in full_comparison.armax)
     errs = sim_vs_real.armax_errors(sim, real)
@@ -242,8 +242,8 @@ def test_armax_modes_of_binary_signal_2_match_the_rig(full_comparison):
 
 @needs_real
 @pytest.mark.realdata
-@pytest.mark.xfail(strict=True, reason="α .25 / white-noise std ratio 7x vs the rig's 20x: no friction law tried "
-                   "grades the damping with amplitude as the rig does without creep on the stair (docs/simulator.md)")
+@pytest.mark.xfail(strict=True, reason="binary_signal_2 0.78x and binary_signal_4 1.44x the rig's std, and the "
+                   "α .25 / white-noise ratio 14x against the rig's 20x (docs/simulator.md, \"Not met, and why\")")
 def test_output_stds_and_their_ratio_match_the_rig(full_comparison):
     for rec, (real, sim) in full_comparison.stds.items():
         assert 0.8 <= sim / real <= 1.25, rec
@@ -253,7 +253,8 @@ def test_output_stds_and_their_ratio_match_the_rig(full_comparison):
 
 @needs_real
 @pytest.mark.realdata
-@pytest.mark.xfail(strict=True, reason="BLA 6-10 dB off the rig's FRF in places (docs/simulator.md)")
+@pytest.mark.xfail(strict=True, reason="BLA 6.5 dB off the rig's FRF on binary_signal_2 and white_noise_4 "
+                   "(docs/simulator.md, seventh look)")
 def test_bla_within_3_db_of_the_rigs_frequency_response(full_comparison):
     for rec in ("binary_signal_2", "white_noise_4"):
         assert full_comparison.frf[rec].max_db <= 3.0, rec
