@@ -447,7 +447,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         armax=tuple(armax_modes_of(d) for d in pairs[ARMAX_RECORD]) if armax_check else None,
         armax_noise_free=armax_modes_of(lev.simulate(pairs[ARMAX_RECORD][0].u, Ts=pairs[ARMAX_RECORD][0].Ts,
                                                      seed=seed, noise=False)) if armax_check else None,
-        frf={rec: compare_frf(lev, rec, root) for rec in frf_records} or None,
+        frf={rec: compare_frf(lev, rec, root, pairs[rec][0] if rec in pairs else None) for rec in frf_records} or None,
         split=split or None,
     )
 
