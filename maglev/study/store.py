@@ -179,7 +179,6 @@ def run_config(client, run_id: str) -> dict:
     from omegaconf import OmegaConf
 
     from maglev.study.config import plain_config
-
     from maglev.study.datasets import UNNAMED_PLANT
 
     raw = artifact_bytes(client, run_id, "config/config.yaml")

@@ -27,7 +27,6 @@ MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation le
 
 
 # ---------------------------------------------------------------------------- HTML helpers
-
 def esc(x) -> str:
     return html.escape(str(x))
 
