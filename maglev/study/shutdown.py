@@ -14,6 +14,13 @@ The launching process (``study.py``) first passes the signal on to every process
 it: submitit's local job processes outlive their launcher, and their own handler (set
 by ``job.run`` in every process that runs jobs, replacing submitit's "bypass") marks
 their runs KILLED.
+
+A signal that lands inside a tracking-store transaction waits for its end
+(:func:`deferred`, around every SQLite session of :func:`maglev.study.tracking.new_client`):
+an exception raised in SQLite's commit leaves the process holding the database's write
+lock, and every later write of the cleanup then waits SQLite's 20 s busy timeout and fails
+(measured: the parent and the run in flight left RUNNING, exit 1 after 100 s instead of
+143 at once).  Ctrl-C's ``KeyboardInterrupt`` waits the same way.
 """
 
 from __future__ import annotations
@@ -21,9 +28,13 @@ from __future__ import annotations
 import os
 import signal
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 _forward = False
 received: int | None = None  # the signal that is ending this process, once one has arrived
+_held = 0  # how many deferred() blocks the main thread is in
+_pending: int | None = None  # a signal that arrived in one, raised when the outermost ends
 
 
 def descendants(pid: int | None = None) -> list[int]:
@@ -51,8 +62,32 @@ def descendants(pid: int | None = None) -> list[int]:
     return out
 
 
+def _raise(signum: int) -> None:
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise SystemExit(128 + signum)
+
+
+@contextmanager
+def deferred() -> Iterator[None]:
+    """Hold SIGTERM's ``SystemExit`` and Ctrl-C's ``KeyboardInterrupt`` until the block ends (in the
+    main thread, where Python runs signal handlers; elsewhere a no-op)."""
+    global _held, _pending
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _held += 1
+    try:
+        yield
+    finally:
+        _held -= 1
+        if not _held and _pending is not None:
+            signum, _pending = _pending, None
+            _raise(signum)
+
+
 def _on_sigterm(signum, frame) -> None:
-    global received
+    global received, _pending
     signal.signal(signum, signal.SIG_IGN)  # let the cleanup finish; SIGKILL still works
     received = signum
     if _forward:
@@ -61,17 +96,31 @@ def _on_sigterm(signum, frame) -> None:
                 os.kill(pid, signum)
             except (ProcessLookupError, PermissionError):
                 pass
-    raise SystemExit(128 + signum)
+    if _held:
+        _pending = signum
+        return
+    _raise(signum)
+
+
+def _on_sigint(signum, frame) -> None:
+    global _pending
+    if _held:
+        _pending = _pending or signum
+        return
+    _raise(signum)
 
 
 def install(forward: bool = False) -> bool:
-    """Install the SIGTERM handler (possible in the main thread only); True if installed.
+    """Install the SIGTERM handler, and Ctrl-C's where Python's default is in place (possible in the
+    main thread only); True if installed.
 
-    ``forward``: pass the signal on to every descendant first (the launching process).
+    ``forward``: pass SIGTERM on to every descendant first (the launching process).
     """
     global _forward
     if threading.current_thread() is not threading.main_thread():
         return False
     _forward = _forward or forward
     signal.signal(signal.SIGTERM, _on_sigterm)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _on_sigint)
     return True

@@ -124,7 +124,29 @@ def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None =
         check_reachable(uri, float(os.environ["MLFLOW_HTTP_REQUEST_TIMEOUT"]))
         return MlflowClient(tracking_uri=uri)
     with store_lock(uri):
-        return MlflowClient(tracking_uri=uri)
+        client = MlflowClient(tracking_uri=uri)
+    _defer_signals_in_sessions(client)
+    return client
+
+
+def _defer_signals_in_sessions(client: MlflowClient) -> None:
+    """Make SIGTERM and Ctrl-C wait for the end of each SQLite session of ``client``'s store (one store
+    per URI and process, shared by every client): see :mod:`maglev.study.shutdown` for why.  Reaches
+    into MLflow's ``SqlAlchemyStore.ManagedSessionMaker`` (3.x); a test fails if that moves."""
+    from maglev.study.shutdown import deferred
+
+    store = getattr(getattr(client, "_tracking_client", None), "store", None)
+    sessions = getattr(store, "ManagedSessionMaker", None)
+    if sessions is None or getattr(sessions, "defers_signals", False):
+        return
+
+    @contextlib.contextmanager
+    def deferring(*args, **kwargs):
+        with deferred(), sessions(*args, **kwargs) as session:
+            yield session
+
+    deferring.defers_signals = True
+    store.ManagedSessionMaker = deferring
 
 
 def connect(tracking: dict) -> tuple[MlflowClient, str]:

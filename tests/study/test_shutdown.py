@@ -1,0 +1,54 @@
+"""A signal that lands in a SQLite commit: the store stays writable, so the cleanup can mark runs KILLED.
+
+Without :func:`maglev.study.shutdown.deferred` around the store's sessions, the ``SystemExit`` raised
+in the commit left this process holding the database's write lock: the write after it waited SQLite's
+20 s busy timeout and failed with "database is locked" (CI saw the SIGTERM test exit 1 after 100 s).
+Each case runs in its own process, since it installs signal handlers and signals itself.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from .harness import process_env
+
+SCRIPT = """
+import os, signal, sys, time
+from sqlalchemy import event
+from maglev.study import shutdown, tracking
+
+client = tracking.new_client("sqlite:///" + sys.argv[1] + "/mlflow.db")
+exp = client.create_experiment("x")
+armed = []
+
+def signal_in_commit(conn):  # the handler runs at the next bytecode, inside SQLAlchemy's commit
+    if armed:
+        os.kill(os.getpid(), armed.pop())
+        sum(range(1000))
+
+event.listen(client._tracking_client.store.engine, "commit", signal_in_commit)
+for name in ("SIGTERM", "SIGINT"):
+    run = client.create_run(exp).info.run_id
+    shutdown.install()
+    armed.append(getattr(signal, name))
+    try:
+        client.set_tag(run, "written", "yes")
+    except BaseException as exc:
+        print(name, "raised", type(exc).__name__, getattr(exc, "code", ""))
+    tic = time.monotonic()
+    client.set_terminated(run, "KILLED")
+    r = client.get_run(run)
+    print(name, "then wrote in %.1f s:" % (time.monotonic() - tic), r.info.status, r.data.tags.get("written"))
+"""
+
+
+def test_a_signal_in_a_commit_is_raised_after_it_and_the_store_stays_writable(tmp_path):
+    out = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True,
+                         timeout=120, env=process_env())
+    lines = [line.strip() for line in out.stdout.splitlines()]
+    assert out.returncode == 0 and len(lines) == 4, out.stdout + out.stderr[-3000:]
+    assert lines[0] == "SIGTERM raised SystemExit 143" and lines[2] == "SIGINT raised KeyboardInterrupt"
+    for line in lines[1::2]:
+        assert float(line.split()[4]) < 5, lines  # not SQLite's 20 s busy timeout
+        assert line.endswith(": KILLED yes"), lines  # the interrupted transaction committed whole
