@@ -24,7 +24,8 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
   ``v_creep``) is off by default;
 * the current regulator saturates at ``i_sat`` (≈ 4.06 A on the rig) and, as an
   option, the lab's logging quirk "command >= 10 A is written as 0 A";
-* a pure input delay; a laser reading ``y = y_off + h`` plus sensor noise (white +
+* a pure input delay; a laser reading ``y = y_off + h``, stretched above ``sensor_knee``
+  (``Levitator.reading``), plus sensor noise (white +
   a narrow mains-ripple line) and a disturbance at each command switch, quantised to
   the ADC step; optional process (force) noise.
 
@@ -102,7 +103,9 @@ class LevitatorParams:
     i_sat: float = 3.89868  # A, current-regulator saturation
     delay: float = 0.011127  # s (physical), pure input delay beyond the one-sample read-then-write lag
     t_phys: float = 0.0064383  # s of physics per logged sample labelled 1 ms
-    y_off: float = 0.350993  # cm, reading y = y_off + h
+    y_off: float = 0.350993  # cm, reading y = y_off + h below the sensor's knee
+    sensor_knee: float = 10.0  # cm, height h above which the laser's scale stretches
+    sensor_stretch: float = 0.0  # 1/cm, reading y = y_off + h + sensor_stretch (h - sensor_knee)^2 above it
     noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
     noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
     noise_line_hz: float = 106.18  # Hz, ripple frequency (aliased by the logging rate)
@@ -115,7 +118,7 @@ class LevitatorParams:
     def __post_init__(self) -> None:
         positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys", "v_stribeck",
                     "quiet_level_lower", "quiet_level_upper", "quiet_power_lower", "quiet_power_upper",
-                    "age_half", "slip_renewal")
+                    "age_half", "slip_renewal", "sensor_knee")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -125,7 +128,7 @@ class LevitatorParams:
                   "noise_std", "noise_line_hz", "quant", "force_noise", "gamma_quiet_lower",
                   "gamma_quiet_upper", "activity_fast_lower", "activity_fast_upper", "activity_slow_lower",
                   "activity_slow_upper", "activity_attack", "activity_release", "jitter_weight", "jitter_tau",
-                  "gamma_aged_lower", "gamma_aged_upper", "switch_noise")
+                  "gamma_aged_lower", "gamma_aged_upper", "switch_noise", "sensor_stretch")
         for name in nonneg:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -152,7 +155,7 @@ class Equilibrium:
     current: float  # A, coil current after the regulator
     z: float  # cm, lower magnet
     h: float  # cm, upper magnet
-    y: float  # cm, noise-free reading y_off + h
+    y: float  # cm, noise-free reading of h (Levitator.reading)
     lower_seated: bool  # the lower magnet rests on its seat (z = 0)
     upper_at_top: bool  # the upper magnet rests on the top stop
 
@@ -273,7 +276,7 @@ class Levitator:
             if not seated:
                 z = optimize.brentq(lambda z_: coil(z_) - repulsion(p.h_top - z_) - w, 0.0, p.h_top,
                                     xtol=1e-12)
-        return Equilibrium(u=u_val, current=current, z=z, h=h, y=p.y_off + h,
+        return Equilibrium(u=u_val, current=current, z=z, h=h, y=float(self.reading(h)),
                            lower_seated=seated, upper_at_top=at_top)
 
     def static_curve(self, u: np.ndarray) -> np.ndarray:
@@ -306,6 +309,7 @@ class Levitator:
         dfa_di = p.kappa / (p.a * (h + p.b) ** p.n_coil)
         dfc_dz = -p.n_coil * cur / (p.a * (z + p.b) ** (p.n_coil + 1))
         dfc_di = 1.0 / (p.a * (z + p.b) ** p.n_coil)
+        dy_dh = 1.0 + 2.0 * p.sensor_stretch * max(h - p.sensor_knee, 0.0)  # slope of the reading
         gain_u = 0.0 if (self.zero_at_10 and eq.u >= U_MAX) or not 0.0 < eq.u < p.i_sat else 1.0
         gl, gu = p.gamma_lower / p.m, p.gamma_upper / p.m
         if dry_friction:  # at rest: a quiet input and contacts aged without bound
@@ -322,7 +326,7 @@ class Levitator:
         elif eq.lower_seated:
             A = np.array([[0.0, 1.0], [k * (-dfa_dh + dfm), -gu]])
             B = np.array([[0.0], [-k * dfa_di * gain_u]])
-            C = np.array([[1.0, 0.0]])
+            C = np.array([[dy_dh, 0.0]])
         else:
             A = np.array([
                 [0.0, 0.0, 1.0, 0.0],
@@ -331,7 +335,7 @@ class Levitator:
                 [-k * dfm, k * (-dfa_dh + dfm), 0.0, -gu],
             ])
             B = np.array([[0.0], [0.0], [k * dfc_di * gain_u], [-k * dfa_di * gain_u]])
-            C = np.array([[0.0, 1.0, 0.0, 0.0]])
+            C = np.array([[0.0, dy_dh, 0.0, 0.0]])
         scale = self.time_scale()
         sys_c = ct.ss(A * scale, B * scale, C, np.zeros((1, 1)))
         nd = self.delay_samples(Ts)
@@ -375,7 +379,7 @@ class Levitator:
         else:
             force = np.zeros(u.size)
         z, h = _integrate(p, cur, force, dt, substeps, eq0.z, eq0.h)
-        y = p.y_off + h
+        y = self.reading(h)
         if noise:
             y = y + self._sensor_noise(u.size, dt, rng)
             if p.switch_noise > 0:
@@ -398,7 +402,15 @@ class Levitator:
         if U.ndim != 2 or U.shape[1] < 10:
             raise ValueError(f"U must be records x samples with at least 10 samples, got shape {U.shape}")
         dt, substeps, eq0, cur = self._drive(U, Ts, start, substeps)
-        return self.params.y_off + _integrate_batch(self.params, cur, dt, substeps, eq0.z, eq0.h)
+        return self.reading(_integrate_batch(self.params, cur, dt, substeps, eq0.z, eq0.h))
+
+    def reading(self, h: float | np.ndarray) -> np.ndarray:
+        """Noise-free laser reading [cm] of the upper magnet's height ``h`` [cm]: ``y_off + h``, stretched
+        by ``sensor_stretch (h - sensor_knee)^2`` above the knee (the sensor is calibrated at 8 and 10 cm
+        only, and the rig reads hops up to 15.6 cm under a top stop near 12: docs/simulator.md)."""
+        p = self.params
+        over = np.maximum(np.asarray(h, dtype=float) - p.sensor_knee, 0.0)
+        return p.y_off + h + p.sensor_stretch * over ** 2
 
     def _drive(self, U: np.ndarray, Ts: float, start: float,
                substeps: int | None) -> tuple[float, int, Equilibrium, np.ndarray]:
@@ -449,7 +461,8 @@ PLANTS: dict[str, dict[str, float]] = {
         a=0.3563, b=1.392, n_coil=1.275, kappa=0.1965, c=2.21e4, d=4.2, gamma_lower=2.629, gamma_upper=0.07442,
         gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0,
         coulomb_lower=0.006933, coulomb_upper=0.05094, stiction_lower=0.3606, stiction_upper=0.08819,
-        i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81, switch_noise=0.0),
+        i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81, switch_noise=0.0,
+        sensor_stretch=0.0),
 }
 DEFAULT_PLANT = "quiet_ageing"
 

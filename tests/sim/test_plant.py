@@ -61,7 +61,7 @@ def test_seat_and_top_stop_hold():
 IN_MOTION = dict(gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0)
 
 
-@pytest.mark.parametrize("law", ["default", "smooth", "set-valued", "viscous"])
+@pytest.mark.parametrize("law", ["default", "smooth", "set-valued", "viscous", "stretched sensor"])
 def test_batch_simulation_is_the_loop_over_records(law):
     """``simulate_batch`` (the BLA's many realisations at once) gives each record's noise-free reading,
     for each friction law, with records that stay seated, reach the top stop, or hop about."""
@@ -69,12 +69,13 @@ def test_batch_simulation_is_the_loop_over_records(law):
            "smooth": Levitator().with_params(coulomb_lower=0.007, coulomb_upper=0.05, stiction_lower=0.36,
                                              stiction_upper=0.09),
            "set-valued": Levitator().with_params(v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05),
-           "viscous": Levitator().with_params(**IN_MOTION)}[law].with_params(h_top=9.0)
+           "viscous": Levitator().with_params(**IN_MOTION),
+           "stretched sensor": Levitator().with_params(sensor_knee=8.5, sensor_stretch=0.7)}[law].with_params(h_top=9.0)
     U = np.array([random_binary(1500, 0.1, 0.0, 1.0, seed=1), random_binary(1500, 0.02, 0.0, 4.0, seed=2),
                   np.full(1500, 4.5), random_binary(1500, 0.25, 1.5, 4.0, seed=3)])
     loop = np.array([lev.simulate(u, Ts=0.002, noise=False, start=1.0).y for u in U])
     batch = lev.simulate_batch(U, Ts=0.002, start=1.0)
-    assert loop[2].max() == lev.params.y_off + 9.0  # the top stop is reached
+    assert loop[2].max() == lev.reading(9.0)  # the top stop is reached
     np.testing.assert_allclose(batch, loop, rtol=0, atol=1e-9)
 
 
@@ -214,14 +215,36 @@ def test_set_valued_stiction_holds_then_releases():
     assert creeping.meta["h"][-1] == pytest.approx(smooth.equilibrium(2.8).h, abs=1e-6)
 
 
-def test_linear_gain_equals_static_slope():
-    lev = Levitator()
+@pytest.mark.parametrize("knee", [None, 8.4])
+def test_linear_gain_equals_static_slope(knee):
+    """Also where the working point lies above the sensor's knee, whose stretch steepens the reading."""
+    lev = Levitator() if knee is None else Levitator().with_params(sensor_knee=knee, sensor_stretch=0.5)
     for u0 in (2.0, 3.0):
         slope = (lev.equilibrium(u0 + 1e-4).y - lev.equilibrium(u0 - 1e-4).y) / 2e-4
         lin = lev.linearize(u0)
         assert lin.dc_gain == pytest.approx(slope, rel=1e-4)
         assert float(np.real(ct.dcgain(lin.sys_d))) == pytest.approx(slope, rel=1e-4)
+    if knee is not None:  # 3 A sits above the knee, 2 A below it
+        assert lev.equilibrium(3.0).h > knee > lev.equilibrium(2.0).h
     assert lev.linearize(6.0).dc_gain == 0.0  # saturated regulator: no small-signal gain
+
+
+def test_reading_is_linear_below_the_knee_and_stretched_above():
+    """y = y_off + h up to ``sensor_knee``, + sensor_stretch (h - knee)^2 above it, written out by hand on a
+    record whose hops cross the knee; the stretch leaves the motion itself unchanged."""
+    u = random_binary(4000, 0.25, 1.5, 4.0, seed=3)
+    plain = Levitator().simulate(u, noise=False)
+    knee = float(np.percentile(plain.meta["h"], 70))
+    lev = Levitator().with_params(sensor_knee=knee, sensor_stretch=0.5)
+    data = lev.simulate(u, noise=False)
+    h, y0 = data.meta["h"], lev.params.y_off
+    np.testing.assert_array_equal(h, plain.meta["h"])
+    above = h > knee
+    assert 0.1 < above.mean() < 0.5 and (h[above] - knee).max() > 0.5
+    np.testing.assert_allclose(data.y[~above], y0 + h[~above], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(data.y[above], y0 + h[above] + 0.5 * (h[above] - knee) ** 2, rtol=0, atol=1e-12)
+    eq = lev.with_params(sensor_knee=Levitator().equilibrium(3.0).h - 0.2).equilibrium(3.0)
+    assert eq.y == pytest.approx(y0 + eq.h + 0.5 * 0.2 ** 2, abs=1e-9)
 
 
 def test_time_base_flag_stretches_transients():
