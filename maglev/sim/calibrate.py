@@ -41,7 +41,8 @@ from maglev.sim import bla
 from maglev.data import IOData
 from maglev.sim.plant import Levitator, LevitatorParams, rig
 from maglev.refdata import load_record, refdata_dir
-from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_TOLERANCE_DB,
+from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
+                                    FRF_TOLERANCE_DB,
                                     MODE_TOLERANCE, POLE_RECORDS, RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS,
                                     STAIR_TAIL, STATIC_NOISE_MULTIPLE, STD_RECORDS, STD_TOLERANCE,
                                     TRANSIENT_FRACTION, WHITE_RECORD, Comparison, FrfComparison, Mode,

@@ -66,6 +66,26 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
         assert getattr(out.params, name) == pytest.approx(getattr(fitted.params, name), rel=1e-12)
 
 
+def test_frf_figure_draws_a_column_per_record(tmp_path):
+    # `python -m maglev.sim.calibrate --out DIR` draws the docs' figure; 3.2 in per record at 80 dpi
+    from matplotlib.image import imread
+
+    from maglev.sim.bla import FrequencyResponse
+
+    w = np.linspace(0.0, np.pi / 1e-3, 400)
+    G = 1.0 / (1.0 - (w / 220.0) ** 2 + 0.2j * w / 220.0)
+    ones = np.ones(w.size)
+    fr = FrequencyResponse(w=w, G=G, std=0.1 * np.abs(G), coherence=np.linspace(1.0, 0.0, w.size), Suu=ones,
+                           Syy=ones, Ts=1e-3, averages=10)
+    frf = {r: sim_vs_real.FrfComparison(record=r, real=fr, sim=fr) for r in ("binary_signal_2", "white_noise_4")}
+    nan = math.nan
+    cmp = sim_vs_real.Comparison(u_bar=np.zeros(1), y_real=np.zeros(1), y_sim=np.zeros(1), noise_real=(nan,) * 3,
+                                 noise_sim=(nan,) * 3, rise_real=nan, rise_sim=nan, alpha_real=nan, alpha_sim=nan,
+                                 modes={}, frf=frf)
+    calibrate.frf_figure(cmp, tmp_path / "frf.png")
+    assert imread(tmp_path / "frf.png").shape[1] == round(3.2 * 2 * 80)
+
+
 @needs_real
 @pytest.mark.realdata
 def test_friction_errors_are_the_printed_comparison_scaled_by_its_tolerances():
