@@ -10,7 +10,8 @@ order) and prints the simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_re
 2. noise: std, mains-ripple line (aliased frequency, width, share) and ADC step from
    the constant-current record ``binary_signal_9``;
 3. dynamics (``fit_friction``): the damping law of both bushings (in motion, while the
-   input is quiet for its class, on aged contacts) and the physical time per sample, by
+   input is quiet for its class, on aged contacts), the physical time per sample and the
+   sensor's stretch above its knee (hops the static curve never reaches), by
    Nelder-Mead on the log-parameters against the checks the calibration must pass
    (``friction_errors``): ωn and ζ of the modes identified from binary_signal_1..4 and
    white_noise_4 within 20 % (same settings for real and simulated records) and the
@@ -60,6 +61,8 @@ FRICTION_PARAMS = ("gamma_lower", "gamma_upper", "gamma_quiet_lower", "gamma_qui
                    "activity_fast_upper", "activity_slow_lower", "activity_slow_upper", "activity_release",
                    "jitter_weight", "jitter_tau", "gamma_aged_lower", "gamma_aged_upper", "age_half", "slip_renewal",
                    "t_phys")
+SENSOR_MAP_PARAMS = ("sensor_stretch", "sensor_knee")  # the laser's stretch above its knee, fitted with the damping
+DYNAMICS_PARAMS = FRICTION_PARAMS + SENSOR_MAP_PARAMS  # what fit_friction fits
 
 
 # ---------------------------------------------------------------------- 1. static curve
@@ -236,20 +239,22 @@ def friction_cost(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> float:
 def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
                  targets: FrictionTargets | None = None, step: float = 0.06,
                  verbose: bool = False) -> Levitator:
-    """Fit the bushings' damping law and t_phys (``FRICTION_PARAMS``) by minimising :func:`friction_cost`.
+    """Fit the bushings' damping law, t_phys and the sensor's stretch (``DYNAMICS_PARAMS``) by minimising
+    :func:`friction_cost`.
 
     Nelder-Mead on the log-parameters from ``base`` (initial simplex: each parameter
     times e^``step``); ``maxfev`` evaluations of 8 simulated records each (≈ 1 s per
     evaluation).  The objective is not smooth (identified modes jump), so this is a
     local polish: the defaults came from chained longer runs (docs/simulator.md).
     """
-    if any(getattr(base.params, k) <= 0 for k in FRICTION_PARAMS):
-        raise ValueError(f"fit_friction needs positive starting values of {FRICTION_PARAMS}")
+    if any(getattr(base.params, k) <= 0 for k in DYNAMICS_PARAMS):
+        bad = {k: getattr(base.params, k) for k in DYNAMICS_PARAMS if getattr(base.params, k) <= 0}
+        raise ValueError(f"fit_friction fits log-parameters and needs positive starting values, got {bad}")
     tg = targets or friction_targets(root)
-    x0 = np.log([getattr(base.params, k) for k in FRICTION_PARAMS])
+    x0 = np.log([getattr(base.params, k) for k in DYNAMICS_PARAMS])
 
     def model(x: np.ndarray) -> Levitator:
-        return base.with_params(**{k: float(v) for k, v in zip(FRICTION_PARAMS, np.exp(x))})
+        return base.with_params(**{k: float(v) for k, v in zip(DYNAMICS_PARAMS, np.exp(x))})
 
     best: list = [np.inf, base]
 

@@ -32,7 +32,7 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
 6-7 ms of physical time (notes §5).  By default the simulator reproduces the
 records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
-of physics with ``time_scale = t_phys / 1 ms`` (6.438, fitted by ``maglev.sim.calibrate``
+of physics with ``time_scale = t_phys / 1 ms`` (6.431, fitted by ``maglev.sim.calibrate``
 together with the friction), so a 60 s-labelled record covers about 390 s of physics
 and the transients have the real records' length in samples.  With
 ``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
@@ -72,26 +72,26 @@ class LevitatorParams:
     d: float = 10.0  # cm, offset of the repulsion law
     # damping of each bushing [N s/m]: gamma in motion, plus gamma_quiet while the input is quiet
     # for its class, plus gamma_aged on a contact that has rested (docs/simulator.md, "Physics")
-    gamma_lower: float = 0.6767  # N s/m, viscous friction of the lower magnet in motion
-    gamma_upper: float = 0.4590  # N s/m, viscous friction of the upper magnet in motion
-    gamma_quiet_lower: float = 3.0104  # N s/m, extra damping of the lower magnet while its activity is 0
-    gamma_quiet_upper: float = 5.1400  # N s/m, same for the upper magnet
-    quiet_level_lower: float = 0.11512  # A, band-passed current at which the lower magnet's activity is 1
-    quiet_level_upper: float = 0.090682  # A, same for the upper magnet
-    quiet_power_lower: float = 6.2235  # gamma_quiet / (1 + activity^power): how sharply it fades
-    quiet_power_upper: float = 6.8592
-    activity_fast_lower: float = 0.020101  # s (physical), fast low pass of the current's band pass
-    activity_fast_upper: float = 0.019334
-    activity_slow_lower: float = 0.33223  # s (physical), slow low pass subtracted from it
-    activity_slow_upper: float = 0.39962
+    gamma_lower: float = 0.68249  # N s/m, viscous friction of the lower magnet in motion
+    gamma_upper: float = 0.46272  # N s/m, viscous friction of the upper magnet in motion
+    gamma_quiet_lower: float = 3.0372  # N s/m, extra damping of the lower magnet while its activity is 0
+    gamma_quiet_upper: float = 5.3467  # N s/m, same for the upper magnet
+    quiet_level_lower: float = 0.11429  # A, band-passed current at which the lower magnet's activity is 1
+    quiet_level_upper: float = 0.091584  # A, same for the upper magnet
+    quiet_power_lower: float = 6.2217  # gamma_quiet / (1 + activity^power): how sharply it fades
+    quiet_power_upper: float = 6.9243
+    activity_fast_lower: float = 0.020302  # s (physical), fast low pass of the current's band pass
+    activity_fast_upper: float = 0.019192
+    activity_slow_lower: float = 0.33533  # s (physical), slow low pass subtracted from it
+    activity_slow_upper: float = 0.39648
     activity_attack: float = 0.003  # s (physical), the activity envelope's rise
-    activity_release: float = 0.18732  # s (physical), and its fall
-    jitter_weight: float = 1.2553  # share of the current's jitter added to quiet_level (class, not range)
-    jitter_tau: float = 0.025790  # s (physical), low pass of the current's |step| per sample (the jitter)
-    gamma_aged_lower: float = 1.5267  # N s/m, extra damping of the lower bushing after a long rest
-    gamma_aged_upper: float = 1.5359  # N s/m, same for the upper bushing
-    age_half: float = 0.20214  # s (physical), contact age at which half of gamma_aged acts
-    slip_renewal: float = 0.10158  # cm, slip that renews a contact (ageing law, backward Euler)
+    activity_release: float = 0.18887  # s (physical), and its fall
+    jitter_weight: float = 1.2507  # share of the current's jitter added to quiet_level (class, not range)
+    jitter_tau: float = 0.025884  # s (physical), low pass of the current's |step| per sample (the jitter)
+    gamma_aged_lower: float = 1.5337  # N s/m, extra damping of the lower bushing after a long rest
+    gamma_aged_upper: float = 1.5358  # N s/m, same for the upper bushing
+    age_half: float = 0.20387  # s (physical), contact age at which half of gamma_aged acts
+    slip_renewal: float = 0.10121  # cm, slip that renews a contact (ageing law, backward Euler)
     # optional dry friction (off by default): Coulomb level + Stribeck peak, tanh-regularised sign
     coulomb_lower: float = 0.0  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
     coulomb_upper: float = 0.0  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
@@ -102,10 +102,10 @@ class LevitatorParams:
     h_top: float = 16.0  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
     i_sat: float = 3.89868  # A, current-regulator saturation
     delay: float = 0.011127  # s (physical), pure input delay beyond the one-sample read-then-write lag
-    t_phys: float = 0.0064383  # s of physics per logged sample labelled 1 ms
+    t_phys: float = 0.0064307  # s of physics per logged sample labelled 1 ms
     y_off: float = 0.350993  # cm, reading y = y_off + h below the sensor's knee
-    sensor_knee: float = 10.0  # cm, height h above which the laser's scale stretches
-    sensor_stretch: float = 0.0  # 1/cm, reading y = y_off + h + sensor_stretch (h - sensor_knee)^2 above it
+    sensor_knee: float = 9.4818  # cm, height h above which the laser's scale stretches
+    sensor_stretch: float = 0.50372  # 1/cm, reading y = y_off + h + sensor_stretch (h - sensor_knee)^2 above it
     noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
     noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
     noise_line_hz: float = 106.18  # Hz, ripple frequency (aliased by the logging rate)
@@ -191,7 +191,7 @@ class Levitator:
     """The levitator rig: ``simulate`` a command record, find ``equilibrium``, ``linearize``.
 
     ``physical_time=False`` (default) reproduces the lab's records as labelled: every
-    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (6.438 ms for Ts = 1 ms).
+    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (6.431 ms for Ts = 1 ms).
     ``physical_time=True`` integrates exactly ``Ts`` of physics per sample.
     ``zero_at_10=True`` reproduces the lab logger's quirk of writing 0 A for any
     command >= 10 A (the 10 A level of the real staircase reads as 0 A).
@@ -454,8 +454,17 @@ class Levitator:
 # Named parameter sets of the lab's rig, so that a study's config names the plant its data came from and
 # a run logged before the defaults changed still reproduces (``dataset.plant``; docs/simulator.md).
 PLANTS: dict[str, dict[str, float]] = {
-    # the defaults: quiet-input and aged-contact damping, d = 10 cm (issue 15's fifth attempt, 2026-11-23)
-    "quiet_ageing": {},
+    # the defaults: the damping below, refitted with the laser's stretch above 9.48 cm (issue 15, 2026-11-26)
+    "stretched_sensor": {},
+    # the defaults until 2026-11-26: quiet-input and aged-contact damping, d = 10 cm, a linear sensor
+    # (issue 15's fifth attempt, 2026-11-23)
+    "quiet_ageing": dict(
+        gamma_lower=0.6767, gamma_upper=0.459, gamma_quiet_lower=3.0104, gamma_quiet_upper=5.14,
+        quiet_level_lower=0.11512, quiet_level_upper=0.090682, quiet_power_lower=6.2235, quiet_power_upper=6.8592,
+        activity_fast_lower=0.020101, activity_fast_upper=0.019334, activity_slow_lower=0.33223,
+        activity_slow_upper=0.39962, activity_release=0.18732, jitter_weight=1.2553, jitter_tau=0.02579,
+        gamma_aged_lower=1.5267, gamma_aged_upper=1.5359, age_half=0.20214, slip_renewal=0.10158,
+        t_phys=0.0064383, sensor_stretch=0.0),
     # the defaults until 2026-11-23: Coulomb + Stribeck dry friction, d = 4.2 cm, no delay or switch noise
     "dry_friction": dict(
         a=0.3563, b=1.392, n_coil=1.275, kappa=0.1965, c=2.21e4, d=4.2, gamma_lower=2.629, gamma_upper=0.07442,
@@ -464,7 +473,7 @@ PLANTS: dict[str, dict[str, float]] = {
         i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81, switch_noise=0.0,
         sensor_stretch=0.0),
 }
-DEFAULT_PLANT = "quiet_ageing"
+DEFAULT_PLANT = "stretched_sensor"
 
 
 def rig(plant: str = DEFAULT_PLANT) -> Levitator:

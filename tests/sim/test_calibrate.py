@@ -60,9 +60,11 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
     cost = calibrate.friction_cost(fitted, targets)
     assert cost < calibrate.friction_cost(in_motion, targets)
     assert cost < 0.7 * calibrate.friction_cost(rig("dry_friction"), targets)
+    # and the sensor's stretch above its knee (2026-11-26) scores better than the linear sensor before it
+    assert cost < 0.9 * calibrate.friction_cost(rig("quiet_ageing"), targets)
     # one evaluation of the fit itself runs and returns a plant (maxfev=1: the start)
     out = calibrate.fit_friction(fitted, REAL, maxfev=1, targets=targets)
-    for name in calibrate.FRICTION_PARAMS:
+    for name in calibrate.DYNAMICS_PARAMS:
         assert getattr(out.params, name) == pytest.approx(getattr(fitted.params, name), rel=1e-12)
 
 
@@ -84,6 +86,12 @@ def test_frf_figure_draws_a_column_per_record(tmp_path):
                                  modes={}, frf=frf)
     calibrate.frf_figure(cmp, tmp_path / "frf.png")
     assert imread(tmp_path / "frf.png").shape[1] == round(3.2 * 2 * 80)
+
+
+def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
+    # the plant before the sensor stretch has sensor_stretch = 0: the error names it before any data is read
+    with pytest.raises(ValueError, match=r"positive starting values, got \{'sensor_stretch': 0.0\}"):
+        calibrate.fit_friction(rig("quiet_ageing"), Path("/nonexistent"))
 
 
 @needs_real

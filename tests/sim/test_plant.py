@@ -9,7 +9,8 @@ import pytest
 from scipy import signal
 
 from maglev.estimation import arx
-from maglev.sim.plant import _REST_AGE, Levitator, LevitatorParams, _Damping, _friction
+from maglev.sim.calibrate import DYNAMICS_PARAMS
+from maglev.sim.plant import _REST_AGE, DEFAULT_PLANT, PLANTS, Levitator, LevitatorParams, _Damping, _friction, rig
 from maglev.lab.signals import random_binary
 
 
@@ -77,6 +78,20 @@ def test_batch_simulation_is_the_loop_over_records(law):
     batch = lev.simulate_batch(U, Ts=0.002, start=1.0)
     assert loop[2].max() == lev.reading(9.0)  # the top stop is reached
     np.testing.assert_allclose(batch, loop, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(set(PLANTS) - {DEFAULT_PLANT}))
+def test_a_named_plant_does_not_move_with_the_defaults(name):
+    """A study run names its plant (``dataset.plant``) so that it reproduces after the defaults change: every
+    earlier parameter set must pin what the calibration fits. Moving every fitted default by 10 % leaves
+    its readings unchanged to the last bit."""
+    u = random_binary(1500, 0.25, 1.5, 4.0, seed=4)
+    moved = {k: 1.1 * getattr(LevitatorParams(), k) for k in DYNAMICS_PARAMS}
+    moved["sensor_knee"] = 8.0  # a knee the record's hops cross, should the plant leave the stretch to the defaults
+    pinned = Levitator(params=LevitatorParams(**PLANTS[name]))
+    shifted = Levitator(params=LevitatorParams(**{**moved, **PLANTS[name]}))
+    np.testing.assert_array_equal(shifted.simulate(u, seed=1).y, pinned.simulate(u, seed=1).y)
+    assert rig(name).params == pinned.params
 
 
 def test_logging_quirk_zero_at_10():

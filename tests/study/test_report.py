@@ -258,3 +258,19 @@ def test_preparation_without_simulated_data_claims_no_bla_comparison():
     best = pd.DataFrame([{"name": "bj 3-3-3-3-5 · real_binary_signal_2", "structure": "bj", "orders": "[3 3 3 3 5]"}])
     prep = preparation({"lab.u_star": 2.75}, [0.002], {}, best)
     assert "This sweep has no simulated dataset" in prep and "compared with the best linear approximation" not in prep
+
+
+def test_preparation_writes_the_sensor_map_of_the_sweeps_plant():
+    """The model text gives the reading as the simulated plant has it: stretched above its knee on the default
+    plant, linear on the plant before it."""
+    from maglev.sim.plant import rig
+    from maglev.study.report.sections import preparation
+
+    best = pd.DataFrame([{"name": "oe 2-2-2 · binary_a025", "structure": "oe", "orders": "[2 2 2]"}])
+    knee = rig("stretched_sensor").params.sensor_knee
+    for plant, stretched in (("stretched_sensor", True), ("quiet_ageing", False)):
+        configs = {"r": {"dataset": {"source": "sim", "plant": plant}}}
+        prep = preparation({}, [0.001], configs, best)
+        assert ("y = y_off + h + s·max(h − h_k, 0)²" in prep) == stretched, plant
+        assert (f"stretches above {knee:.3f} cm" in prep) == stretched, plant
+        assert f"simulator parameter set {plant})" in prep
