@@ -4,8 +4,10 @@
 the run, re-applies the schema, recomputes the identification without MLflow and
 compares every metric except timings (``fit_seconds``) exactly.  ``--log`` also logs
 the reproduction as a new run tagged ``reproduces=RUN_ID`` (``kind=reproduction``).
-The run's ``git_commit`` tag says which code produced it; a different checkout is
-reported.  A wrong id, a run that is not a model run (a sweep parent, a ranking) or one
+The run's ``git_commit`` tag says which code produced it, and its ``lib.*`` tags which
+numpy, scipy and control; a different checkout or library version is reported, and
+metrics that differ only by rounding (:func:`within_rounding`) are told apart from
+real differences.  A wrong id, a run that is not a model run (a sweep parent, a ranking) or one
 that did not finish raises :class:`~maglev.study.store.SweepError` with one line saying
 what the run is (the command prints it and exits 2).
 """
@@ -16,8 +18,20 @@ import math
 import sys
 
 
+# Other builds of numpy / scipy round differently: measured on runs logged before 2026-11-26 and recomputed
+# with numpy 2.4.6 and scipy 1.17.1, OE's metrics moved by <= 1.2e-13 relative, ARMAX's (through its
+# optimiser's iterations) by <= 1.4e-8, and p-values of 1e-90 to 1e-165 by <= 6e-6 relative.
+ROUNDING_RELATIVE = 1e-7
+ROUNDING_ABSOLUTE = 1e-12  # for the vanishing p-values
+
+
 def same(a: float, b: float) -> bool:
     return a == b or (math.isnan(a) and math.isnan(b))
+
+
+def within_rounding(a: float, b: float) -> bool:
+    """Equal but for the last digits another build of the numeric libraries may change."""
+    return same(a, b) or abs(a - b) <= max(ROUNDING_RELATIVE * max(abs(a), abs(b)), ROUNDING_ABSOLUTE)
 
 
 def open_client(uri: str):
@@ -89,6 +103,12 @@ def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool 
     now = tracking.git_info()["git_commit"]
     if commit and commit != now:
         print(f"note: run made at commit {commit[:10]}, this checkout is {now[:10]}", file=sys.stderr)
+    libs = {k: (v, run.data.tags[k]) for k, v in tracking.library_versions().items()
+            if run.data.tags.get(k, v) != v}
+    if libs:
+        print("note: run made with " + ", ".join(f"{k[len(tracking.LIBRARY_TAG):]} {was} (now {current})"
+                                                 for k, (current, was) in libs.items())
+              + ": metrics may differ in their last digits", file=sys.stderr)
     ok, rows, out = recompute(cfg, run.data.metrics)
     if log_run:
         client2, exp_id = tracking.connect(cfg["tracking"] | {"uri": uri})

@@ -327,8 +327,21 @@ def git_info() -> dict[str, str]:
     return {"git_commit": commit, "git_dirty": str(dirty).lower()}
 
 
+# the numeric libraries whose builds set the last digits of every metric (a run's reproduction may differ by
+# rounding under other versions: maglev reproduce names them)
+NUMERIC_LIBRARIES = ("numpy", "scipy", "control")
+LIBRARY_TAG = "lib."
+
+
+def library_versions() -> dict[str, str]:
+    """Tags ``lib.<name>``: the installed version of each of ``NUMERIC_LIBRARIES``."""
+    from importlib.metadata import version
+
+    return {f"{LIBRARY_TAG}{name}": version(name) for name in NUMERIC_LIBRARIES}
+
+
 def process_tags() -> dict[str, str]:
-    return {"host": socket.gethostname(), "pid": str(os.getpid()), **git_info()}
+    return {"host": socket.gethostname(), "pid": str(os.getpid()), **git_info(), **library_versions()}
 
 
 # ---------------------------------------------------------------------------- queries

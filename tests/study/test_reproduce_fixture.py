@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from maglev.study.reproduce import recompute, same
+from maglev.study.reproduce import recompute, within_rounding
 
 FIXTURES = sorted((Path(__file__).parent / "fixtures" / "before_layout").glob("*.json"))
 # metrics redefined on purpose after the fixtures were logged: they measure the same thing, so stay close
@@ -28,23 +28,12 @@ REDEFINED = {  # metric: relative tolerance
 }
 
 
-# The fixtures were logged with the numpy / scipy of their day. Newer builds round differently (numpy 2.4.6,
-# scipy 1.17.1, 2026-11-26: OE's metrics move by <= 1.2e-13 relative, ARMAX's, through its optimiser's
-# iterations, by <= 1.4e-8, and p-values of 1e-90 and 1e-165 by <= 6e-6 relative), so a metric may differ
-# from its logged value by rounding: RELATIVE_ROUNDING, or ABSOLUTE_ROUNDING for the vanishing p-values.
-RELATIVE_ROUNDING = 1e-7
-ABSOLUTE_ROUNDING = 1e-12
-
-
-def _rounding_only(logged: float, now: float) -> bool:
-    return same(logged, now) or now == pytest.approx(logged, rel=RELATIVE_ROUNDING, abs=ABSOLUTE_ROUNDING)
-
-
 @pytest.mark.parametrize("path", FIXTURES, ids=[p.stem for p in FIXTURES])
 def test_a_config_logged_before_the_move_reproduces_identically(path):
     logged = json.loads(path.read_text())
     _, rows, _ = recompute(logged["config"], logged["metrics"])
     assert len(rows) >= 30  # every metric but the timing
-    assert [row for row in rows if row[0] not in REDEFINED and not _rounding_only(row[1], row[2])] == []
+    # logged with the numpy / scipy of their day: newer builds change the last digits (within_rounding)
+    assert [row for row in rows if row[0] not in REDEFINED and not within_rounding(row[1], row[2])] == []
     for name, logged_value, now in (row for row in rows if row[0] in REDEFINED):
         assert now == pytest.approx(logged_value, rel=REDEFINED[name]), name

@@ -214,6 +214,39 @@ def test_reproduce_gives_identical_metrics(sweep, capsys):
     out = capsys.readouterr().out
     assert "metrics identical" in out and "DIFFERENT" not in out
     assert f"{r.data.metrics['val_fit']:22.15g}" in out
+    import numpy
+    import scipy
+
+    assert (r.data.tags["lib.numpy"], r.data.tags["lib.scipy"]) == (numpy.__version__, scipy.__version__)
+
+
+def test_reproduce_tells_rounding_from_a_real_difference_and_names_other_library_versions(sweep, capsys, tmp_path):
+    """A run made under other numpy / scipy builds reproduces to their rounding: reported as such (exit 0),
+    with the versions named; a metric off by more is DIFFERENT (exit 1). On a copy of the sweep's store."""
+    import shutil
+
+    from mlflow import MlflowClient
+
+    from maglev.study.cli import main
+    from maglev.study.reproduce import ROUNDING_RELATIVE
+
+    store, _, _ = sweep
+    shutil.copy(store / "mlflow.db", tmp_path / "mlflow.db")
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    _, _, runs = all_runs(store)
+    r = next(r for r in runs if r.data.tags.get("structure") == "oe")
+    client = MlflowClient(tracking_uri=uri)
+    client.set_tag(r.info.run_id, "lib.numpy", "1.26.4")
+    fit = r.data.metrics["val_fit"]
+    client.log_metric(r.info.run_id, "val_fit", fit * (1 + ROUNDING_RELATIVE / 10), step=1)
+    assert main(["reproduce", r.info.run_id, "--tracking-uri", uri]) == 0
+    out, err = capsys.readouterr()
+    assert "metrics equal to rounding (1 differ in their last digits only)" in out and "DIFFERENT" not in out
+    assert f"note: run made with numpy 1.26.4 (now {__import__('numpy').__version__})" in err
+    client.log_metric(r.info.run_id, "val_fit", fit * (1 + 100 * ROUNDING_RELATIVE), step=2)
+    assert main(["reproduce", r.info.run_id, "--tracking-uri", uri]) == 1
+    out = capsys.readouterr().out
+    assert "1 metric(s) differ" in out and "DIFFERENT" in out
 
 
 def test_relaunch_runs_nothing_new_and_reaps_stale_runs(sweep):
