@@ -407,7 +407,8 @@ class Levitator:
     def reading(self, h: float | np.ndarray) -> np.ndarray:
         """Noise-free laser reading [cm] of the upper magnet's height ``h`` [cm]: ``y_off + h``, stretched
         by ``sensor_stretch (h - sensor_knee)^2`` above the knee (the sensor is calibrated at 8 and 10 cm
-        only, and the rig reads hops up to 15.6 cm under a top stop near 12: docs/simulator.md)."""
+        only, and the rig reads hops up to 15.6 cm where ECP's coil spacing puts the top near 12 cm:
+        docs/simulator.md)."""
         p = self.params
         over = np.maximum(np.asarray(h, dtype=float) - p.sensor_knee, 0.0)
         return p.y_off + h + p.sensor_stretch * over ** 2
