@@ -11,7 +11,7 @@ order) and prints the simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_re
    the constant-current record ``binary_signal_9``;
 3. dynamics (``fit_friction``): the damping law of both bushings (in motion, while the
    input is quiet for its class, on aged contacts), the physical time per sample and the
-   sensor's stretch above its knee (hops the static curve never reaches), by
+   sensor's stretch above its knee (its pole and knee), by
    Nelder-Mead on the log-parameters against the checks the calibration must pass
    (``friction_errors``): ωn and ζ of the modes identified from binary_signal_1..4 and
    white_noise_4 within 20 % (same settings for real and simulated records) and the
@@ -61,19 +61,20 @@ FRICTION_PARAMS = ("gamma_lower", "gamma_upper", "gamma_quiet_lower", "gamma_qui
                    "activity_fast_upper", "activity_slow_lower", "activity_slow_upper", "activity_release",
                    "jitter_weight", "jitter_tau", "gamma_aged_lower", "gamma_aged_upper", "age_half", "slip_renewal",
                    "t_phys")
-SENSOR_MAP_PARAMS = ("sensor_stretch", "sensor_knee")  # the laser's stretch above its knee, fitted with the damping
+SENSOR_MAP_PARAMS = ("sensor_pole", "sensor_knee")  # the laser's stretch above its knee, fitted with the damping
 DYNAMICS_PARAMS = FRICTION_PARAMS + SENSOR_MAP_PARAMS  # what fit_friction fits
+STATIC_PARAMS = ("a", "b", "n_coil", "kappa", "y_off", "i_sat")  # what fit_static fits
 
 
 # ---------------------------------------------------------------------- 1. static curve
 def fit_static(stair: IOData, base: Levitator) -> Levitator:
-    """Fit a, b, n_coil, kappa, y_off and i_sat to the staircase's stationary averages."""
+    """Fit ``STATIC_PARAMS`` (a, b, n_coil, kappa, y_off, i_sat) to the staircase's stationary averages, read
+    through the plant's sensor map."""
     u_bar, y_bar = stair_averages(stair)
-    p0 = base.params
-    x0 = np.array([p0.a, p0.b, p0.n_coil, p0.kappa, p0.y_off, p0.i_sat])
+    x0 = np.array([getattr(base.params, k) for k in STATIC_PARAMS])
 
     def model(x: np.ndarray) -> Levitator:
-        return base.with_params(a=x[0], b=x[1], n_coil=x[2], kappa=x[3], y_off=x[4], i_sat=x[5])
+        return base.with_params(**dict(zip(STATIC_PARAMS, (float(v) for v in x))))
 
     def residual(x: np.ndarray) -> np.ndarray:
         try:

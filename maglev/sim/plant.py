@@ -64,10 +64,10 @@ class LevitatorParams:
 
     m: float = 0.12  # kg, mass of each magnet
     g: float = 9.81  # m/s^2
-    a: float = 0.352464  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
-    b: float = 1.404207  # cm, offset of the coil force law
-    n_coil: float = 1.291744  # exponent of the coil force law
-    kappa: float = 0.135485  # coil pull on the upper magnet relative to the push on the lower one
+    a: float = 0.32626  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
+    b: float = 1.47276  # cm, offset of the coil force law
+    n_coil: float = 1.33774  # exponent of the coil force law
+    kappa: float = 0.139709  # coil pull on the upper magnet relative to the push on the lower one
     c: float = 1.130784e5  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
     d: float = 10.0  # cm, offset of the repulsion law
     # damping of each bushing [N s/m]: gamma in motion, plus gamma_quiet while the input is quiet
@@ -100,12 +100,12 @@ class LevitatorParams:
     v_stribeck: float = 1.316  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
     v_creep: float = 0.713  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
     h_top: float = 16.0  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
-    i_sat: float = 3.89868  # A, current-regulator saturation
+    i_sat: float = 3.86921  # A, current-regulator saturation
     delay: float = 0.011127  # s (physical), pure input delay beyond the one-sample read-then-write lag
     t_phys: float = 0.0064307  # s of physics per logged sample labelled 1 ms
-    y_off: float = 0.350993  # cm, reading y = y_off + h below the sensor's knee
-    sensor_knee: float = 9.4818  # cm, height h above which the laser's scale stretches
-    sensor_stretch: float = 0.50372  # 1/cm, reading y = y_off + h + sensor_stretch (h - sensor_knee)^2 above it
+    y_off: float = 0.350783  # cm, reading y = y_off + h below the sensor's knee
+    sensor_knee: float = 8.7  # cm, height h above which the laser's scale stretches
+    sensor_pole: float = 17.0  # cm, D: reading y = y_off + h + (h - sensor_knee)^2 / (D - h) above the knee (0: linear)
     noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
     noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
     noise_line_hz: float = 106.18  # Hz, ripple frequency (aliased by the logging rate)
@@ -128,7 +128,7 @@ class LevitatorParams:
                   "noise_std", "noise_line_hz", "quant", "force_noise", "gamma_quiet_lower",
                   "gamma_quiet_upper", "activity_fast_lower", "activity_fast_upper", "activity_slow_lower",
                   "activity_slow_upper", "activity_attack", "activity_release", "jitter_weight", "jitter_tau",
-                  "gamma_aged_lower", "gamma_aged_upper", "switch_noise", "sensor_stretch")
+                  "gamma_aged_lower", "gamma_aged_upper", "switch_noise", "sensor_pole")
         for name in nonneg:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -140,6 +140,11 @@ class LevitatorParams:
         if not 0.0 <= self.switch_noise_pole < 1.0:
             raise ValueError(
                 f"LevitatorParams.switch_noise_pole must be in [0, 1), got {self.switch_noise_pole!r}"
+            )
+        if self.sensor_pole and not self.sensor_pole > max(self.h_top, self.sensor_knee):
+            raise ValueError(
+                f"LevitatorParams.sensor_pole must be 0 (a linear sensor) or above both h_top = {self.h_top!r} cm "
+                f"and sensor_knee = {self.sensor_knee!r} cm (the reading diverges there), got {self.sensor_pole!r}"
             )
         if not 0.0 <= self.noise_line_radius < 1.0:
             raise ValueError(
@@ -309,7 +314,7 @@ class Levitator:
         dfa_di = p.kappa / (p.a * (h + p.b) ** p.n_coil)
         dfc_dz = -p.n_coil * cur / (p.a * (z + p.b) ** (p.n_coil + 1))
         dfc_di = 1.0 / (p.a * (z + p.b) ** p.n_coil)
-        dy_dh = 1.0 + 2.0 * p.sensor_stretch * max(h - p.sensor_knee, 0.0)  # slope of the reading
+        dy_dh = self.reading_slope(h)
         gain_u = 0.0 if (self.zero_at_10 and eq.u >= U_MAX) or not 0.0 < eq.u < p.i_sat else 1.0
         gl, gu = p.gamma_lower / p.m, p.gamma_upper / p.m
         if dry_friction:  # at rest: a quiet input and contacts aged without bound
@@ -406,12 +411,24 @@ class Levitator:
 
     def reading(self, h: float | np.ndarray) -> np.ndarray:
         """Noise-free laser reading [cm] of the upper magnet's height ``h`` [cm]: ``y_off + h``, stretched
-        by ``sensor_stretch (h - sensor_knee)^2`` above the knee (the sensor is calibrated at 8 and 10 cm
-        only, and the rig reads hops up to 15.6 cm where ECP's coil spacing puts the top near 12 cm:
-        docs/simulator.md)."""
+        above the knee h_k by ``(h - h_k)^2 / (D - h)`` (D = ``sensor_pole``; 0 leaves the sensor linear).
+        The stretch starts smoothly (value and slope continuous at the knee) and steepens towards D, as a
+        reading linear in 1 / (D - h) does: the sensor is calibrated at 8 and 10 cm only, and the rig reads
+        hops up to 15.6 cm where ECP's coil spacing puts the top near 12 cm (docs/simulator.md)."""
         p = self.params
-        over = np.maximum(np.asarray(h, dtype=float) - p.sensor_knee, 0.0)
-        return p.y_off + h + p.sensor_stretch * over ** 2
+        h = np.asarray(h, dtype=float)
+        if not p.sensor_pole:
+            return p.y_off + h
+        over = np.maximum(h - p.sensor_knee, 0.0)
+        return p.y_off + h + over ** 2 / (p.sensor_pole - h)
+
+    def reading_slope(self, h: float) -> float:
+        """d reading / d h at the height ``h`` [cm] (1 below the knee): the output gain of ``linearize``."""
+        p = self.params
+        if not p.sensor_pole or h <= p.sensor_knee:
+            return 1.0
+        over, room = h - p.sensor_knee, p.sensor_pole - h
+        return 1.0 + (2.0 * over * room + over ** 2) / room ** 2
 
     def _drive(self, U: np.ndarray, Ts: float, start: float,
                substeps: int | None) -> tuple[float, int, Equilibrium, np.ndarray]:
@@ -455,7 +472,8 @@ class Levitator:
 # Named parameter sets of the lab's rig, so that a study's config names the plant its data came from and
 # a run logged before the defaults changed still reproduces (``dataset.plant``; docs/simulator.md).
 PLANTS: dict[str, dict[str, float]] = {
-    # the defaults: the damping below, refitted with the laser's stretch above 9.48 cm (issue 15, 2026-11-26)
+    # the defaults: the damping refitted with a sensor stretch (issue 15, 2026-11-26), read through a sensor
+    # that stretches above 8.7 cm towards a pole at 17 cm, the static curve refitted under it
     "stretched_sensor": {},
     # the defaults until 2026-11-26: quiet-input and aged-contact damping, d = 10 cm, a linear sensor
     # (issue 15's fifth attempt, 2026-11-23)
@@ -465,14 +483,15 @@ PLANTS: dict[str, dict[str, float]] = {
         activity_fast_lower=0.020101, activity_fast_upper=0.019334, activity_slow_lower=0.33223,
         activity_slow_upper=0.39962, activity_release=0.18732, jitter_weight=1.2553, jitter_tau=0.02579,
         gamma_aged_lower=1.5267, gamma_aged_upper=1.5359, age_half=0.20214, slip_renewal=0.10158,
-        t_phys=0.0064383, sensor_stretch=0.0),
+        t_phys=0.0064383, a=0.352464, b=1.404207, n_coil=1.291744, kappa=0.135485, y_off=0.350993,
+        i_sat=3.89868, sensor_pole=0.0),
     # the defaults until 2026-11-23: Coulomb + Stribeck dry friction, d = 4.2 cm, no delay or switch noise
     "dry_friction": dict(
         a=0.3563, b=1.392, n_coil=1.275, kappa=0.1965, c=2.21e4, d=4.2, gamma_lower=2.629, gamma_upper=0.07442,
         gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0,
         coulomb_lower=0.006933, coulomb_upper=0.05094, stiction_lower=0.3606, stiction_upper=0.08819,
         i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81, switch_noise=0.0,
-        sensor_stretch=0.0),
+        sensor_pole=0.0),
 }
 DEFAULT_PLANT = "stretched_sensor"
 

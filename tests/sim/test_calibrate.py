@@ -89,8 +89,8 @@ def test_frf_figure_draws_a_column_per_record(tmp_path):
 
 
 def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
-    # the plant before the sensor stretch has sensor_stretch = 0: the error names it before any data is read
-    with pytest.raises(ValueError, match=r"positive starting values, got \{'sensor_stretch': 0.0\}"):
+    # the plant before the sensor stretch has sensor_pole = 0: the error names it before any data is read
+    with pytest.raises(ValueError, match=r"positive starting values, got \{'sensor_pole': 0.0\}"):
         calibrate.fit_friction(rig("quiet_ageing"), Path("/nonexistent"))
 
 

@@ -9,7 +9,7 @@ import pytest
 from scipy import signal
 
 from maglev.estimation import arx
-from maglev.sim.calibrate import DYNAMICS_PARAMS
+from maglev.sim.calibrate import DYNAMICS_PARAMS, STATIC_PARAMS
 from maglev.sim.plant import _REST_AGE, DEFAULT_PLANT, PLANTS, Levitator, LevitatorParams, _Damping, _friction, rig
 from maglev.lab.signals import random_binary
 
@@ -71,7 +71,7 @@ def test_batch_simulation_is_the_loop_over_records(law):
                                              stiction_upper=0.09),
            "set-valued": Levitator().with_params(v_creep=0.0, coulomb_lower=0.15, coulomb_upper=0.05),
            "viscous": Levitator().with_params(**IN_MOTION),
-           "stretched sensor": Levitator().with_params(sensor_knee=8.5, sensor_stretch=0.7)}[law].with_params(h_top=9.0)
+           "stretched sensor": Levitator().with_params(h_top=9.0, sensor_knee=8.5, sensor_pole=11.0)}[law].with_params(h_top=9.0)
     U = np.array([random_binary(1500, 0.1, 0.0, 1.0, seed=1), random_binary(1500, 0.02, 0.0, 4.0, seed=2),
                   np.full(1500, 4.5), random_binary(1500, 0.25, 1.5, 4.0, seed=3)])
     loop = np.array([lev.simulate(u, Ts=0.002, noise=False, start=1.0).y for u in U])
@@ -86,7 +86,7 @@ def test_a_named_plant_does_not_move_with_the_defaults(name):
     earlier parameter set must pin what the calibration fits. Moving every fitted default by 10 % leaves
     its readings unchanged to the last bit."""
     u = random_binary(1500, 0.25, 1.5, 4.0, seed=4)
-    moved = {k: 1.1 * getattr(LevitatorParams(), k) for k in DYNAMICS_PARAMS}
+    moved = {k: 1.1 * getattr(LevitatorParams(), k) for k in DYNAMICS_PARAMS + STATIC_PARAMS}
     moved["sensor_knee"] = 8.0  # a knee the record's hops cross, should the plant leave the stretch to the defaults
     pinned = Levitator(params=LevitatorParams(**PLANTS[name]))
     shifted = Levitator(params=LevitatorParams(**{**moved, **PLANTS[name]}))
@@ -233,7 +233,7 @@ def test_set_valued_stiction_holds_then_releases():
 @pytest.mark.parametrize("knee", [None, 8.4])
 def test_linear_gain_equals_static_slope(knee):
     """Also where the working point lies above the sensor's knee, whose stretch steepens the reading."""
-    lev = Levitator() if knee is None else Levitator().with_params(sensor_knee=knee, sensor_stretch=0.5)
+    lev = Levitator() if knee is None else Levitator().with_params(sensor_knee=knee, sensor_pole=20.0)
     for u0 in (2.0, 3.0):
         slope = (lev.equilibrium(u0 + 1e-4).y - lev.equilibrium(u0 - 1e-4).y) / 2e-4
         lin = lev.linearize(u0)
@@ -245,21 +245,28 @@ def test_linear_gain_equals_static_slope(knee):
 
 
 def test_reading_is_linear_below_the_knee_and_stretched_above():
-    """y = y_off + h up to ``sensor_knee``, + sensor_stretch (h - knee)^2 above it, written out by hand on a
+    """y = y_off + h up to the knee h_k; above it, a reading linear in 1 / (D - h) that meets the linear one in
+    value and slope at the knee, y_off + h_k + (D - h_k) ((D - h_k) / (D - h) - 1), written out by hand on a
     record whose hops cross the knee; the stretch leaves the motion itself unchanged."""
     u = random_binary(4000, 0.25, 1.5, 4.0, seed=3)
     plain = Levitator().simulate(u, noise=False)
-    knee = float(np.percentile(plain.meta["h"], 70))
-    lev = Levitator().with_params(sensor_knee=knee, sensor_stretch=0.5)
+    knee, D = float(np.percentile(plain.meta["h"], 70)), 18.0
+    lev = Levitator().with_params(sensor_knee=knee, sensor_pole=D)
     data = lev.simulate(u, noise=False)
     h, y0 = data.meta["h"], lev.params.y_off
     np.testing.assert_array_equal(h, plain.meta["h"])
     above = h > knee
     assert 0.1 < above.mean() < 0.5 and (h[above] - knee).max() > 0.5
     np.testing.assert_allclose(data.y[~above], y0 + h[~above], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(data.y[above], y0 + h[above] + 0.5 * (h[above] - knee) ** 2, rtol=0, atol=1e-12)
+    by_hand = y0 + knee + (D - knee) * ((D - knee) / (D - h[above]) - 1.0)
+    np.testing.assert_allclose(data.y[above], by_hand, rtol=0, atol=1e-12)
+    for x in (knee - 0.1, knee + 1e-9, knee + 1.0, 12.0):  # the slope linearize uses, continuous at the knee
+        fd = (lev.reading(x + 1e-6) - lev.reading(x - 1e-6)) / 2e-6
+        assert lev.reading_slope(x) == pytest.approx(float(fd), rel=1e-6)
     eq = lev.with_params(sensor_knee=Levitator().equilibrium(3.0).h - 0.2).equilibrium(3.0)
-    assert eq.y == pytest.approx(y0 + eq.h + 0.5 * 0.2 ** 2, abs=1e-9)
+    assert eq.y == pytest.approx(y0 + eq.h + 0.2 ** 2 / (D - eq.h), abs=1e-9)
+    with pytest.raises(ValueError, match=r"sensor_pole must be 0 \(a linear sensor\) or above both h_top = 16.0"):
+        Levitator().with_params(sensor_pole=15.0)
 
 
 def test_time_base_flag_stretches_transients():

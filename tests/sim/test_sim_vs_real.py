@@ -227,10 +227,9 @@ def test_the_simulated_plant_offers_armax_both_modes_the_sensor_noise_line_can_h
 # strict xfails, so the suite says so when a new plant model meets them.
 @needs_real
 @pytest.mark.realdata
-@pytest.mark.xfail(strict=True, reason="ARMAX finds both modes, but the fast one at ζ 0.16 against the rig's 0.11 "
-                   "(+43 %, tolerance 30 %): the repulsion's curvature over the gap's excursions, which no pair "
-                   "of real magnets flattens (docs/simulator.md, seventh and eighth looks)")
 def test_armax_modes_of_binary_signal_2_match_the_rig(full_comparison):
+    # the rig 74/0.26 + 218/0.11; simulated 81/0.21 + 234/0.14 since the sensor's stretch (2026-11-26; with the
+    # linear sensor the fast mode read ζ 0.18, docs/simulator.md, eighth look)
     real, sim = (sim_vs_real.two_modes(m) for m in full_comparison.armax)
     errs = sim_vs_real.armax_errors(sim, real)
     assert all(abs(errs[f"{m} wn"]) <= 0.15 and abs(errs[f"{m} zeta"]) <= 0.30 for m in ("slow", "fast"))
@@ -239,7 +238,7 @@ def test_armax_modes_of_binary_signal_2_match_the_rig(full_comparison):
 @needs_real
 @pytest.mark.realdata
 @pytest.mark.xfail(strict=True, reason="binary_signal_4 (α .5, 1.5-3 A) 1.43x the rig's std; the other six "
-                   "within [0.87, 1.24] (docs/simulator.md, \"Not met, and why\")")
+                   "within [0.85, 1.23] (docs/simulator.md, \"Not met, and why\")")
 def test_output_stds_match_the_rig(full_comparison):
     for rec, (real, sim) in full_comparison.stds.items():
         assert 0.8 <= sim / real <= 1.25, rec
@@ -248,7 +247,7 @@ def test_output_stds_match_the_rig(full_comparison):
 @needs_real
 @pytest.mark.realdata
 def test_binary_to_white_noise_std_ratio_matches_the_rig(full_comparison):
-    # α .25 against uniform white noise over the same 1.5-4 A: 20.3x on the rig, 16.0x simulated since the
+    # α .25 against uniform white noise over the same 1.5-4 A: 20.3x on the rig, 15.9x simulated since the
     # sensor's stretch (14.1x before it, docs/simulator.md)
     real, sim = full_comparison.std_ratio
     assert real == pytest.approx(20.3, abs=0.1)
@@ -257,7 +256,7 @@ def test_binary_to_white_noise_std_ratio_matches_the_rig(full_comparison):
 
 @needs_real
 @pytest.mark.realdata
-@pytest.mark.xfail(strict=True, reason="BLA 5.2 dB off the rig's FRF on binary_signal_2 and 6.2 dB on "
+@pytest.mark.xfail(strict=True, reason="BLA 5.4 dB off the rig's FRF on binary_signal_2 and 6.2 dB on "
                    "white_noise_4 (docs/simulator.md, seventh and eighth looks)")
 def test_bla_within_3_db_of_the_rigs_frequency_response(full_comparison):
     for rec in ("binary_signal_2", "white_noise_4"):

@@ -271,6 +271,6 @@ def test_preparation_writes_the_sensor_map_of_the_sweeps_plant():
     for plant, stretched in (("stretched_sensor", True), ("quiet_ageing", False)):
         configs = {"r": {"dataset": {"source": "sim", "plant": plant}}}
         prep = preparation({}, [0.001], configs, best)
-        assert ("y = y_off + h + s·max(h − h_k, 0)²" in prep) == stretched, plant
+        assert ("y = y_off + h + max(h − h_k, 0)² / (D − h)" in prep) == stretched, plant
         assert (f"stretches above {knee:.3f} cm" in prep) == stretched, plant
         assert f"simulator parameter set {plant})" in prep

@@ -416,8 +416,8 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
         f"{num(p.m, 3)} kg each; the coil current I acts on both. With the state x = (z, h, ż, ḣ):",
         "m z̈ = I / (a (z + b)^n) − c / (h − z + d)^4 − m g − F_f(ż)   (coil push, repulsion, gravity, bushing friction)",
         "m ḧ = −κ I / (a (h + b)^n) + c / (h − z + d)^4 − m g − F_f(ḣ)   (coil pull, repulsion, gravity, friction)",
-        ("y = y_off + h" + (f" + s·max(h − h_k, 0)² (the laser's scale stretches above h_k = {num(p.sensor_knee, 3)} cm, "
-                            f"s = {num(p.sensor_stretch, 3)} /cm)" if p.sensor_stretch > 0 else "")
+        ("y = y_off + h" + (f" + max(h − h_k, 0)² / (D − h) (the laser's scale stretches above h_k = "
+                            f"{num(p.sensor_knee, 3)} cm, towards D = {num(p.sensor_pole, 3)} cm)" if p.sensor_pole else "")
          + " (+ sensor noise, ADC quantisation); I = min(u, i_sat) (current regulator)."),
         f"Fitted to the rig (maglev calibrate): a = {num(p.a, 4)}, b = {num(p.b, 3)} cm, n = {num(p.n_coil, 3)}, "
         f"κ = {num(p.kappa, 3)}, c = {num(p.c, 0)} N cm⁴, d = {num(p.d, 3)} cm, i_sat = {num(p.i_sat, 3)} A, "
@@ -429,7 +429,7 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
                  "large ones (the response depends on the input's amplitude and class), the lower magnet rests on "
                  f"its seat below lift-off, the upper one hits a stop, and the regulator saturates at "
                  f"{num(p.i_sat, 3)} A" + (", and the sensor's scale stretches above "
-                                           f"{num(p.sensor_knee, 3)} cm." if p.sensor_stretch > 0 else "."))
+                                           f"{num(p.sensor_knee, 3)} cm." if p.sensor_pole else "."))
     parts = [bullets(esc(t) for t in model), para(esc(nonlinear))]
     if u_star is None:
         return section("preparation", "Preparation tasks", *parts,
