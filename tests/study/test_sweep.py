@@ -158,14 +158,27 @@ def alive(pid: int) -> bool:
         return False
 
 
+def _blocks_sigint(task: Path) -> bool:
+    """Whether the thread ``/proc/<pid>/task/<tid>`` blocks SIGINT (its ``SigBlk`` mask)."""
+    try:
+        mask = next(line.split()[1] for line in (task / "status").read_text().splitlines()
+                    if line.startswith("SigBlk:"))
+    except (OSError, StopIteration):
+        return True
+    return bool(int(mask, 16) >> (signal.SIGINT - 1) & 1)
+
+
 def interrupt_a_side_thread(pid: int) -> None:
     """SIGINT to one of ``pid``'s threads other than the main one when it has any (Linux x86-64 ``tgkill``):
-    the kernel may hand a terminal's Ctrl-C to any thread, and a main thread blocked in ``waitpid`` then
-    never sees it.  Elsewhere, to the process."""
+    the kernel may hand a terminal's Ctrl-C to any thread that does not block it, and a main thread blocked
+    in ``waitpid`` then never sees it.  Threads that block every signal (jemalloc's background thread, in
+    some installs the lowest side thread) would hold it pending for ever, which no terminal does, so they
+    are passed over.  Elsewhere, to the process."""
     import ctypes
     import platform
 
-    side = sorted(int(t.name) for t in Path(f"/proc/{pid}/task").iterdir() if int(t.name) != pid)
+    side = sorted(int(t.name) for t in Path(f"/proc/{pid}/task").iterdir()
+                  if int(t.name) != pid and not _blocks_sigint(t))
     if side and sys.platform == "linux" and platform.machine() == "x86_64":
         assert ctypes.CDLL(None, use_errno=True).syscall(234, pid, side[0], signal.SIGINT) == 0  # tgkill
     else:
