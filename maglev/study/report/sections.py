@@ -424,12 +424,13 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
         f"y_off = {num(p.y_off, 3)} cm; {_friction_text(p)} (docs/simulator.md; simulator parameter set "
         f"{', '.join(plants) or DEFAULT_PLANT}).",
     ]
-    nonlinear = ("It is nonlinear because the coil and repulsion forces fall off with a power of distance "
-                 f"(n = {num(p.n_coil, 3)} and 4), the bushings' friction holds small motions and releases "
-                 "large ones (the response depends on the input's amplitude and class), the lower magnet rests on "
-                 f"its seat below lift-off, the upper one hits a stop, and the regulator saturates at "
-                 f"{num(p.i_sat, 3)} A" + (", and the sensor's scale stretches above "
-                                           f"{num(p.sensor_knee, 3)} cm." if p.sensor_pole else "."))
+    causes = [f"the coil and repulsion forces fall off with a power of distance (n = {num(p.n_coil, 3)} and 4)",
+              "the bushings' friction holds small motions and releases large ones (the response depends on the "
+              "input's amplitude and class)", "the lower magnet rests on its seat below lift-off",
+              "the upper one hits a stop", f"the regulator saturates at {num(p.i_sat, 3)} A"]
+    if p.sensor_pole:
+        causes.append(f"the sensor's scale stretches above {num(p.sensor_knee, 3)} cm")
+    nonlinear = f"It is nonlinear because {', '.join(causes[:-1])}, and {causes[-1]}."
     parts = [bullets(esc(t) for t in model), para(esc(nonlinear))]
     if u_star is None:
         return section("preparation", "Preparation tasks", *parts,
