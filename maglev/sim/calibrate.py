@@ -248,8 +248,8 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
     evaluation).  The objective is not smooth (identified modes jump), so this is a
     local polish: the defaults came from chained longer runs (docs/simulator.md).
     """
-    if any(getattr(base.params, k) <= 0 for k in DYNAMICS_PARAMS):
-        bad = {k: getattr(base.params, k) for k in DYNAMICS_PARAMS if getattr(base.params, k) <= 0}
+    bad = {k: getattr(base.params, k) for k in DYNAMICS_PARAMS if getattr(base.params, k) <= 0}
+    if bad:
         raise ValueError(f"fit_friction fits log-parameters and needs positive starting values, got {bad}")
     tg = targets or friction_targets(root)
     x0 = np.log([getattr(base.params, k) for k in DYNAMICS_PARAMS])
