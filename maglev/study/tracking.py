@@ -333,8 +333,10 @@ NUMERIC_LIBRARIES = ("numpy", "scipy", "control")
 LIBRARY_TAG = "lib."
 
 
+@lru_cache(maxsize=1)
 def library_versions() -> dict[str, str]:
-    """Tags ``lib.<name>``: the installed version of each of ``NUMERIC_LIBRARIES``."""
+    """Tags ``lib.<name>``: the installed version of each of ``NUMERIC_LIBRARIES`` (read once per process:
+    they cannot change under it, and every run of a sweep's worker tags them)."""
     from importlib.metadata import version
 
     return {f"{LIBRARY_TAG}{name}": version(name) for name in NUMERIC_LIBRARIES}
