@@ -51,7 +51,7 @@ from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA
                                     least_damped, noise_psd, output_std, quantisation_step, record_frf,
                                     stair_averages, stair_step, two_modes)
 
-__all__ = ["fit_static", "fit_noise", "fit_friction", "friction_targets", "friction_errors",
+__all__ = ["fit_static", "fit_noise", "fit_friction", "with_dynamics", "friction_targets", "friction_errors",
            "friction_cost", "main"]
 
 # parameters moved by fit_friction (all positive, fitted in log space): the bushings' damping law
@@ -237,6 +237,22 @@ def friction_cost(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> float:
     return float(np.sum(np.array(list(errors.values())) ** _NORM) ** (1 / _NORM)) + penalty
 
 
+def with_dynamics(base: Levitator, **values: float) -> Levitator:
+    """``base`` with new ``DYNAMICS_PARAMS`` values, the sensor's mains line kept where the records show it.
+
+    The line is fitted as a frequency in Hz of physics (``fit_noise``), and the reading aliases it to
+    ``noise_line_hz * t_phys`` cycles per labelled sample; a fit that moves ``t_phys`` would move the
+    line across the spectrum with it (by 7 % for a 7 % shorter time base), and the modes identified
+    next to it with the line.  So ``noise_line_hz`` follows ``t_phys``.
+    """
+    unknown = sorted(set(values) - set(DYNAMICS_PARAMS))
+    if unknown:
+        raise ValueError(f"with_dynamics sets only DYNAMICS_PARAMS, got {unknown}")
+    p = base.params
+    t_phys = values.get("t_phys", p.t_phys)
+    return base.with_params(**values, noise_line_hz=p.noise_line_hz * p.t_phys / t_phys)
+
+
 def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
                  targets: FrictionTargets | None = None, step: float = 0.06,
                  verbose: bool = False) -> Levitator:
@@ -244,7 +260,8 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
     :func:`friction_cost`.
 
     Nelder-Mead on the log-parameters from ``base`` (initial simplex: each parameter
-    times e^``step``); ``maxfev`` evaluations of 8 simulated records each (≈ 1 s per
+    times e^``step``; the mains line follows ``t_phys``, :func:`with_dynamics`);
+    ``maxfev`` evaluations of 8 simulated records each (≈ 1 s per
     evaluation).  The objective is not smooth (identified modes jump), so this is a
     local polish: the defaults came from chained longer runs (docs/simulator.md).
     """
@@ -255,7 +272,7 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
     x0 = np.log([getattr(base.params, k) for k in DYNAMICS_PARAMS])
 
     def model(x: np.ndarray) -> Levitator:
-        return base.with_params(**{k: float(v) for k, v in zip(DYNAMICS_PARAMS, np.exp(x))})
+        return with_dynamics(base, **{k: float(v) for k, v in zip(DYNAMICS_PARAMS, np.exp(x))})
 
     best: list = [np.inf, base]
 

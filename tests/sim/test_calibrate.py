@@ -88,6 +88,24 @@ def test_frf_figure_draws_a_column_per_record(tmp_path):
     assert imread(tmp_path / "frf.png").shape[1] == round(3.2 * 2 * 80)
 
 
+def test_a_shorter_time_base_keeps_the_mains_line_where_the_records_show_it():
+    # the reading aliases the line (Hz of physics) to noise_line_hz * t_phys cycles per labelled sample: a fit that
+    # shortens the time base must leave the line there (white_noise_4's second mode is identified next to it)
+    def peak(lev):
+        u = np.full(20000, 3.0)
+        return sim_vs_real.noise_psd(lev.simulate(u, seed=2).trim(0.25).y)
+    base = rig()
+    moved = calibrate.with_dynamics(base, t_phys=0.93 * base.params.t_phys, gamma_lower=0.5)
+    assert moved.params.gamma_lower == 0.5 and moved.params.noise_line_hz > base.params.noise_line_hz
+    (f0, psd0), (f1, psd1) = peak(base), peak(moved)
+    assert f1[np.argmax(psd1)] == pytest.approx(f0[np.argmax(psd0)], abs=f0[1])
+    naive = base.with_params(t_phys=0.93 * base.params.t_phys)  # the line moves with the time base
+    f2, psd2 = peak(naive)
+    assert abs(f2[np.argmax(psd2)] - f0[np.argmax(psd0)]) > 5 * f0[1]
+    with pytest.raises(ValueError, match=r"only DYNAMICS_PARAMS, got \['noise_std'\]"):
+        calibrate.with_dynamics(base, noise_std=0.1)
+
+
 def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
     # the plant before the sensor stretch has sensor_pole = 0: the error names it before any data is read
     with pytest.raises(ValueError, match=r"positive starting values, got \{'sensor_pole': 0.0\}"):
