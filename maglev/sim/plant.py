@@ -64,51 +64,52 @@ class LevitatorParams:
 
     m: float = 0.12  # kg, mass of each magnet
     g: float = 9.81  # m/s^2
-    a: float = 0.32626  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
-    b: float = 1.47276  # cm, offset of the coil force law
-    n_coil: float = 1.33774  # exponent of the coil force law
-    kappa: float = 0.139709  # coil pull on the upper magnet relative to the push on the lower one
+    a: float = 0.30133397  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
+    b: float = 1.5406675  # cm, offset of the coil force law
+    n_coil: float = 1.3781672  # exponent of the coil force law
+    kappa: float = 0.14618686  # coil pull on the upper magnet relative to the push on the lower one
     c: float = 1.130784e5  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
     d: float = 10.0  # cm, offset of the repulsion law
     # damping of each bushing [N s/m]: gamma in motion, plus gamma_quiet while the input is quiet
     # for its class, plus gamma_aged on a contact that has rested (docs/simulator.md, "Physics")
-    gamma_lower: float = 0.68249  # N s/m, viscous friction of the lower magnet in motion
-    gamma_upper: float = 0.46272  # N s/m, viscous friction of the upper magnet in motion
-    gamma_quiet_lower: float = 3.0372  # N s/m, extra damping of the lower magnet while its activity is 0
-    gamma_quiet_upper: float = 5.3467  # N s/m, same for the upper magnet
-    quiet_level_lower: float = 0.11429  # A, band-passed current at which the lower magnet's activity is 1
-    quiet_level_upper: float = 0.091584  # A, same for the upper magnet
-    quiet_power_lower: float = 6.2217  # gamma_quiet / (1 + activity^power): how sharply it fades
-    quiet_power_upper: float = 6.9243
-    activity_fast_lower: float = 0.020302  # s (physical), fast low pass of the current's band pass
-    activity_fast_upper: float = 0.019192
-    activity_slow_lower: float = 0.33533  # s (physical), slow low pass subtracted from it
-    activity_slow_upper: float = 0.39648
+    gamma_lower: float = 0.65507037  # N s/m, viscous friction of the lower magnet in motion
+    gamma_upper: float = 0.43521616  # N s/m, viscous friction of the upper magnet in motion
+    gamma_quiet_lower: float = 3.1551629  # N s/m, extra damping of the lower magnet while its activity is 0
+    gamma_quiet_upper: float = 5.424287  # N s/m, same for the upper magnet
+    quiet_level_lower: float = 0.11940606  # A, band-passed current at which the lower magnet's activity is 1
+    quiet_level_upper: float = 0.096609112  # A, same for the upper magnet
+    quiet_power_lower: float = 3.9102034  # gamma_quiet / (1 + activity^power): how sharply it fades
+    quiet_power_upper: float = 4.4297234
+    activity_fast_lower: float = 0.022208422  # s (physical), fast low pass of the current's band pass
+    activity_fast_upper: float = 0.017006167
+    activity_slow_lower: float = 0.33117527  # s (physical), slow low pass subtracted from it
+    activity_slow_upper: float = 0.38902922
     activity_attack: float = 0.003  # s (physical), the activity envelope's rise
-    activity_release: float = 0.18887  # s (physical), and its fall
-    jitter_weight: float = 1.2507  # share of the current's jitter added to quiet_level (class, not range)
-    jitter_tau: float = 0.025884  # s (physical), low pass of the current's |step| per sample (the jitter)
-    gamma_aged_lower: float = 1.5337  # N s/m, extra damping of the lower bushing after a long rest
-    gamma_aged_upper: float = 1.5358  # N s/m, same for the upper bushing
-    age_half: float = 0.20387  # s (physical), contact age at which half of gamma_aged acts
-    slip_renewal: float = 0.10121  # cm, slip that renews a contact (ageing law, backward Euler)
-    # optional dry friction (off by default): Coulomb level + Stribeck peak, tanh-regularised sign
-    coulomb_lower: float = 0.0  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
-    coulomb_upper: float = 0.0  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
+    activity_release: float = 0.21675387  # s (physical), and its fall
+    jitter_weight: float = 1.2216867  # share of the current's jitter added to quiet_level (class, not range)
+    jitter_tau: float = 0.024123165  # s (physical), low pass of the current's |step| per sample (the jitter)
+    gamma_aged_lower: float = 1.5157536  # N s/m, extra damping of the lower bushing after a long rest
+    gamma_aged_upper: float = 1.6114445  # N s/m, same for the upper bushing
+    age_half: float = 0.20708156  # s (physical), contact age at which half of gamma_aged acts
+    slip_renewal: float = 0.10453168  # cm, slip that renews a contact (ageing law, backward Euler)
+    # dry friction: Coulomb level + Stribeck peak; set-valued (exact stick-slip) with v_creep = 0, as in the
+    # defaults (light Coulomb friction, no Stribeck peak), else with a tanh-regularised sign
+    coulomb_lower: float = 0.0029911694  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
+    coulomb_upper: float = 0.0014996732  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
     stiction_lower: float = 0.0  # N, extra friction at low speed (Stribeck peak) on the lower magnet
     stiction_upper: float = 0.0  # N, extra friction at low speed (Stribeck peak) on the upper magnet
     v_stribeck: float = 1.316  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
-    v_creep: float = 0.713  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
+    v_creep: float = 0.0  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
     h_top: float = 16.0  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
-    i_sat: float = 3.86921  # A, current-regulator saturation
+    i_sat: float = 3.8507856  # A, current-regulator saturation
     delay: float = 0.011127  # s (physical), pure input delay beyond the one-sample read-then-write lag
-    t_phys: float = 0.0064307  # s of physics per logged sample labelled 1 ms
-    y_off: float = 0.350783  # cm, reading y = y_off + h below the sensor's knee
-    sensor_knee: float = 8.7  # cm, height h above which the laser's scale stretches
-    sensor_pole: float = 17.0  # cm, D: reading y = y_off + h + (h - sensor_knee)^2 / (D - h) above the knee (0: linear)
+    t_phys: float = 0.0059850447  # s of physics per logged sample labelled 1 ms
+    y_off: float = 0.34973543  # cm, reading y = y_off + h below the sensor's knee
+    sensor_knee: float = 8.6541226  # cm, height h above which the laser's scale stretches
+    sensor_pole: float = 16.833234  # cm, D: reading y = y_off + h + (h - sensor_knee)^2 / (D - h) above the knee (0: linear)
     noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
     noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
-    noise_line_hz: float = 106.18  # Hz, ripple frequency (aliased by the logging rate)
+    noise_line_hz: float = 114.08632  # Hz, ripple frequency (aliased by the logging rate)
     noise_line_radius: float = 0.9198  # pole radius of the AR(2) line (its sharpness)
     quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
     force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
@@ -472,9 +473,19 @@ class Levitator:
 # Named parameter sets of the lab's rig, so that a study's config names the plant its data came from and
 # a run logged before the defaults changed still reproduces (``dataset.plant``; docs/simulator.md).
 PLANTS: dict[str, dict[str, float]] = {
-    # the defaults: the damping refitted with a sensor stretch (issue 15, 2026-11-26), read through a sensor
-    # that stretches above 8.7 cm towards a pole at 17 cm, the static curve refitted under it
-    "stretched_sensor": {},
+    # the defaults: light set-valued Coulomb friction on both bushings, a gentler class schedule and a 7 %
+    # shorter time base, the static curve fitted to the simulated staircase (issue 15, 2026-11-26, ninth look)
+    "stick_slip": {},
+    # the defaults earlier on 2026-11-26: the damping refitted with a sensor stretch, read through a sensor
+    # that stretches above 8.7 cm towards a pole at 17 cm, the static curve refitted under it; no dry friction
+    "stretched_sensor": dict(
+        gamma_lower=0.68249, gamma_upper=0.46272, gamma_quiet_lower=3.0372, gamma_quiet_upper=5.3467,
+        quiet_level_lower=0.11429, quiet_level_upper=0.091584, quiet_power_lower=6.2217, quiet_power_upper=6.9243,
+        activity_fast_lower=0.020302, activity_fast_upper=0.019192, activity_slow_lower=0.33533,
+        activity_slow_upper=0.39648, activity_release=0.18887, jitter_weight=1.2507, jitter_tau=0.025884,
+        gamma_aged_lower=1.5337, gamma_aged_upper=1.5358, age_half=0.20387, slip_renewal=0.10121, t_phys=0.0064307,
+        sensor_pole=17.0, sensor_knee=8.7, coulomb_lower=0.0, coulomb_upper=0.0, a=0.32626, b=1.47276,
+        n_coil=1.33774, kappa=0.139709, y_off=0.350783, i_sat=3.86921, noise_line_hz=106.18),
     # the defaults until 2026-11-26: quiet-input and aged-contact damping, d = 10 cm, a linear sensor
     # (issue 15's fifth attempt, 2026-11-23)
     "quiet_ageing": dict(
@@ -484,16 +495,16 @@ PLANTS: dict[str, dict[str, float]] = {
         activity_slow_upper=0.39962, activity_release=0.18732, jitter_weight=1.2553, jitter_tau=0.02579,
         gamma_aged_lower=1.5267, gamma_aged_upper=1.5359, age_half=0.20214, slip_renewal=0.10158,
         t_phys=0.0064383, a=0.352464, b=1.404207, n_coil=1.291744, kappa=0.135485, y_off=0.350993,
-        i_sat=3.89868, sensor_pole=0.0),
+        i_sat=3.89868, sensor_pole=0.0, coulomb_lower=0.0, coulomb_upper=0.0, noise_line_hz=106.18),
     # the defaults until 2026-11-23: Coulomb + Stribeck dry friction, d = 4.2 cm, no delay or switch noise
     "dry_friction": dict(
         a=0.3563, b=1.392, n_coil=1.275, kappa=0.1965, c=2.21e4, d=4.2, gamma_lower=2.629, gamma_upper=0.07442,
         gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0,
         coulomb_lower=0.006933, coulomb_upper=0.05094, stiction_lower=0.3606, stiction_upper=0.08819,
         i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81, switch_noise=0.0,
-        sensor_pole=0.0),
+        sensor_pole=0.0, v_creep=0.713),
 }
-DEFAULT_PLANT = "stretched_sensor"
+DEFAULT_PLANT = "stick_slip"
 
 
 def rig(plant: str = DEFAULT_PLANT) -> Levitator:

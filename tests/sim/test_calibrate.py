@@ -31,7 +31,8 @@ def test_refdata_dir_honours_env(monkeypatch, tmp_path):
 @pytest.mark.realdata
 def test_static_fit_recovers_a_curve_close_to_the_real_one():
     stair = refdata.load_record("working_region", REAL)
-    start = Levitator(zero_at_10=True).with_params(a=0.5, b=2.0, n_coil=1.5, kappa=0.3, y_off=0.3, i_sat=4.0)
+    # a plant without dry friction: its equilibria are the staircase's levels
+    start = rig("stretched_sensor").with_params(a=0.5, b=2.0, n_coil=1.5, kappa=0.3, y_off=0.3, i_sat=4.0)
     fitted = calibrate.fit_static(stair, start)
     u_bar, y_bar = stair_averages(stair)
     assert np.sqrt(np.mean((fitted.static_curve(u_bar) - y_bar) ** 2)) < 0.01
@@ -60,8 +61,16 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
     cost = calibrate.friction_cost(fitted, targets)
     assert cost < calibrate.friction_cost(in_motion, targets)
     assert cost < 0.7 * calibrate.friction_cost(rig("dry_friction"), targets)
-    # and the sensor's stretch above its knee (2026-11-26) scores better than the linear sensor before it
-    assert cost < 0.9 * calibrate.friction_cost(rig("quiet_ageing"), targets)
+    # issue 15's checks but the frequency responses: the defaults meet them all (2026-11-26, docs/simulator.md, ninth
+    # look), the two plants before them miss binary_signal_4's std. (Their 8-norm costs are not ordered so: the cost
+    # scores one replay's FRF, 8.1 dB off on binary_signal_2 for the defaults, where the BLA the done-when checks
+    # use is 5.1 dB off, against 5.4 dB for stretched_sensor.)
+    def unmet(errs: dict[str, float]) -> set[str]:
+        return {k for k, v in errs.items() if v > 1.0 and k not in legacy and not k.startswith("frf")}
+
+    assert unmet(errors) == set()
+    for plant in ("stretched_sensor", "quiet_ageing"):
+        assert "std binary_signal_4" in unmet(calibrate.friction_errors(rig(plant), targets)[0]), plant
     # one evaluation of the fit itself runs and returns a plant (maxfev=1: the start)
     out = calibrate.fit_friction(fitted, REAL, maxfev=1, targets=targets)
     for name in calibrate.DYNAMICS_PARAMS:
@@ -107,8 +116,10 @@ def test_a_shorter_time_base_keeps_the_mains_line_where_the_records_show_it():
 
 
 def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
-    # the plant before the sensor stretch has sensor_pole = 0: the error names it before any data is read
-    with pytest.raises(ValueError, match=r"positive starting values, got \{'sensor_pole': 0.0\}"):
+    # the plant before the sensor stretch has sensor_pole = 0 and no Coulomb friction: the error names them
+    # before any data is read
+    with pytest.raises(ValueError, match=r"positive starting values, got \{'sensor_pole': 0.0, 'coulomb_lower': 0.0, "
+                       r"'coulomb_upper': 0.0\}"):
         calibrate.fit_friction(rig("quiet_ageing"), Path("/nonexistent"))
 
 

@@ -274,3 +274,20 @@ def test_preparation_writes_the_sensor_map_of_the_sweeps_plant():
         assert ("y = y_off + h + max(h − h_k, 0)² / (D − h)" in prep) == stretched, plant
         assert (f"stretches above {knee:.3f} cm" in prep) == stretched, plant
         assert f"simulator parameter set {plant})" in prep
+
+
+def test_preparation_names_the_dry_friction_of_the_sweeps_plant():
+    """The friction law in the model text is the plant's own: the default's light Coulomb friction is set-valued,
+    the oldest plant's is Coulomb + Stribeck with a smooth sign, and the plant between them has none."""
+    from maglev.study.report.sections import preparation
+
+    best = pd.DataFrame([{"name": "oe 2-2-2 · binary_a025", "structure": "oe", "orders": "[2 2 2]"}])
+    expected = {"stick_slip": "Coulomb 0.0015 N dry friction, set-valued (the magnet sticks)",
+                "dry_friction": "Coulomb 0.0509 N + Stribeck 0.0882 N dry friction",
+                "stretched_sensor": None}
+    for plant, text in expected.items():
+        prep = preparation({}, [0.001], {"r": {"dataset": {"source": "sim", "plant": plant}}}, best)
+        if text:
+            assert text in prep, plant
+        else:
+            assert "dry friction" not in prep, plant

@@ -389,7 +389,10 @@ def _friction_text(p) -> str:
     if p.gamma_aged_upper > 0:
         parts.append(f"up to {num(p.gamma_aged_upper, 3)} N s/m more on a contact that has rested")
     if p.coulomb_upper + p.stiction_upper > 0:
-        parts.append(f"Coulomb {num(p.coulomb_upper, 3)} N + Stribeck {num(p.stiction_upper, 3)} N dry friction")
+        dry = f"Coulomb {num(p.coulomb_upper, 4)} N"
+        if p.stiction_upper > 0:
+            dry += f" + Stribeck {num(p.stiction_upper, 4)} N"
+        parts.append(dry + (" dry friction, set-valued (the magnet sticks)" if p.v_creep == 0 else " dry friction"))
     return "friction F_f: " + ", ".join(parts)
 
 
