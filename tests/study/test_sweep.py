@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -213,7 +214,13 @@ def test_maglev_ui_serves_the_store_lightly_opened_on_the_sweep_in_model_trainin
     finally:
         server = descendants(proc.pid)
         interrupt_a_side_thread(proc.pid)  # Ctrl-C: maglev ui stops its server
-        code = proc.wait(timeout=60)
+        try:
+            code = proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            for pid in [proc.pid, *server]:  # leave no MLflow server running after a failure
+                with contextlib.suppress(OSError):
+                    os.kill(pid, signal.SIGKILL)
+            raise
     assert code == 0 and not [pid for pid in server if alive(pid)]
 
 
