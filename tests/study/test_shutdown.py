@@ -11,7 +11,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from .harness import process_env
+from .harness import default_ctrl_c, process_env
 
 SCRIPT = """
 import os, signal, sys, time
@@ -45,7 +45,7 @@ for name in ("SIGTERM", "SIGINT"):
 
 def test_a_signal_in_a_commit_is_raised_after_it_and_the_store_stays_writable(tmp_path):
     out = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True,
-                         timeout=120, env=process_env())
+                         timeout=120, env=process_env(), preexec_fn=default_ctrl_c)
     lines = [line.strip() for line in out.stdout.splitlines()]
     assert out.returncode == 0 and len(lines) == 4, out.stdout + out.stderr[-3000:]
     assert lines[0] == "SIGTERM raised SystemExit 143" and lines[2] == "SIGINT raised KeyboardInterrupt"

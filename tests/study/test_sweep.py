@@ -17,7 +17,7 @@ import pytest
 
 from maglev.study.shutdown import descendants
 
-from .harness import LEAN, REPO, TINY, all_runs, artifact_paths, launch, study_log
+from .harness import LEAN, REPO, TINY, all_runs, artifact_paths, default_ctrl_c, launch, study_log
 
 FIGURES = {"figures/compare.png", "figures/resid.png", "figures/pzmap.png", "figures/bode.png", "figures/step.png"}
 
@@ -196,7 +196,8 @@ def test_maglev_ui_serves_the_store_lightly_opened_on_the_sweep_in_model_trainin
     env = {k: v for k, v in os.environ.items() if k != "MLFLOW_TRACKING_URI"}
     with open(tmp_path / "ui.err", "w") as err:
         proc = subprocess.Popen([sys.executable, "-m", "maglev", "ui", "--tracking-uri", uri, "--port", str(port)],
-                                stdout=subprocess.PIPE, stderr=err, text=True, cwd=REPO, env=env)
+                                stdout=subprocess.PIPE, stderr=err, text=True, cwd=REPO, env=env,
+                                preexec_fn=default_ctrl_c)
     try:
         line = proc.stdout.readline()  # printed once the server answers /health
         base = f"http://127.0.0.1:{port}"
