@@ -32,8 +32,8 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
 6-7 ms of physical time (notes §5).  By default the simulator reproduces the
 records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
-of physics with ``time_scale = t_phys / 1 ms`` (6.431, fitted by ``maglev.sim.calibrate``
-together with the friction), so a 60 s-labelled record covers about 390 s of physics
+of physics with ``time_scale = t_phys / 1 ms`` (5.985, fitted by ``maglev.sim.calibrate``
+together with the friction), so a 60 s-labelled record covers about 360 s of physics
 and the transients have the real records' length in samples.  With
 ``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
 sample), and its transients are about 6.4 times longer in samples.
@@ -189,15 +189,16 @@ class LinearModel:
         return float(np.real(ct.dcgain(self.sys_c)))
 
     def modes(self) -> list[tuple[float, float]]:
-        """(natural frequency [rad/s, model time base], damping ratio) of each pole of ``sys_c``."""
-        return [(abs(p), -p.real / abs(p) if abs(p) > 0 else 1.0) for p in ct.poles(self.sys_c)]
+        """(natural frequency [rad/s, model time base], damping ratio) of each mode of ``sys_c``: each real pole,
+        and each complex pair once."""
+        return [(abs(p), -p.real / abs(p) if abs(p) > 0 else 1.0) for p in ct.poles(self.sys_c) if p.imag >= 0]
 
 
 class Levitator:
     """The levitator rig: ``simulate`` a command record, find ``equilibrium``, ``linearize``.
 
     ``physical_time=False`` (default) reproduces the lab's records as labelled: every
-    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (6.431 ms for Ts = 1 ms).
+    logged sample covers ``Ts / 1 ms * params.t_phys`` of physics (5.985 ms for Ts = 1 ms).
     ``physical_time=True`` integrates exactly ``Ts`` of physics per sample.
     ``zero_at_10=True`` reproduces the lab logger's quirk of writing 0 A for any
     command >= 10 A (the 10 A level of the real staircase reads as 0 A).
