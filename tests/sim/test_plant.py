@@ -325,3 +325,14 @@ def test_bad_parameters_are_named():
         LevitatorParams(m=-1.0)
     with pytest.raises(ValueError, match="Ts must be"):
         Levitator().simulate(np.full(100, 2.0), Ts=0.0)
+
+
+def test_linearisation_lists_each_mode_once():
+    # four states: in motion two complex pairs (two modes); at rest the slow pair is overdamped (two real poles)
+    lev = Levitator()
+    in_motion = lev.linearize(2.75, dry_friction=False)
+    poles = ct.poles(in_motion.sys_c)
+    assert np.sum(poles.imag > 0) == 2 and len(in_motion.modes()) == 2
+    assert sorted(w for w, _ in in_motion.modes()) == pytest.approx(sorted(abs(x) for x in poles if x.imag > 0))
+    at_rest = lev.linearize(2.75).modes()
+    assert len(at_rest) == 3 and sum(z == pytest.approx(1.0) for _, z in at_rest) == 2

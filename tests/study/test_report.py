@@ -291,3 +291,14 @@ def test_preparation_names_the_dry_friction_of_the_sweeps_plant():
             assert text in prep, plant
         else:
             assert "dry friction" not in prep, plant
+
+
+def test_preparation_says_the_jacobian_leaves_out_the_set_valued_friction():
+    """The default plant's Coulomb friction holds the magnets still under infinitesimal inputs; the Jacobian, which
+    has no slope for it, must say it leaves it out (a lab_real sweep describes the default plant)."""
+    from maglev.study.report.sections import preparation
+
+    best = pd.DataFrame([{"name": "oe 2-2-2 · real", "structure": "oe", "orders": "[2 2 2]"}])
+    prep = preparation({"lab.u_star": 2.75}, [0.002], {"r": {"dataset": {"source": "file"}}}, best)
+    assert "leaves out the set-valued dry friction" in prep
+    assert prep.count("ωn = ") == 3  # the fast pair once, the two real poles of the overdamped slow pair

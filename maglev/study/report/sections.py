@@ -465,8 +465,12 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
                          f"{num(c['dataset']['low'])}–{num(c['dataset']['high'])} A): gain {num(abs(b.G[keep][0]), 3)} "
                          f"cm/A at {num(b.w[keep][0], 1)} rad/s, {resonance}; simulation FIT ceiling "
                          f"{num(b.fit_ceiling, 1)} %.")
-    facts.append("The Jacobian is the model of infinitesimal motion about a rest, overdamped by the friction's "
-                 "damping at rest; the lab's inputs move the magnets far beyond that, so "
+    sticks = p.v_creep == 0 and p.coulomb_lower + p.coulomb_upper + p.stiction_lower + p.stiction_upper > 0
+    facts.append("The Jacobian is the model of infinitesimal motion about a rest, heavily damped by the friction's "
+                 "damping at rest"
+                 + (" (it leaves out the set-valued dry friction, which has no slope at rest and holds the magnets "
+                    "still under inputs that small)" if sticks else "")
+                 + "; the lab's inputs move the magnets far beyond that, so "
                  + ("the identified models are compared with the best linear approximation of their input class, as "
                     "in the figure below." if blas else
                     "it is not what a model identified from them should match. This sweep has no simulated dataset, "
