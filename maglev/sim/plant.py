@@ -116,6 +116,13 @@ class LevitatorParams:
     switch_noise: float = 0.004773  # cm per A of command step: a reading disturbance at each switch
     switch_noise_pole: float = 0.5  # its pole (per logged sample)
 
+    @property
+    def sticks(self) -> bool:
+        """Whether the bushings' dry friction is set-valued (``v_creep = 0`` with a Coulomb or Stribeck level): it
+        holds a magnet still under any force it can cancel, and has no slope at rest for ``linearize``."""
+        dry = self.coulomb_lower + self.coulomb_upper + self.stiction_lower + self.stiction_upper
+        return self.v_creep == 0 and dry > 0
+
     def __post_init__(self) -> None:
         positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys", "v_stribeck",
                     "quiet_level_lower", "quiet_level_upper", "quiet_power_lower", "quiet_power_upper",

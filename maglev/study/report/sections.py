@@ -392,7 +392,7 @@ def _friction_text(p) -> str:
         dry = f"Coulomb {num(p.coulomb_upper, 4)} N"
         if p.stiction_upper > 0:
             dry += f" + Stribeck {num(p.stiction_upper, 4)} N"
-        parts.append(dry + (" dry friction, set-valued (the magnet sticks)" if p.v_creep == 0 else " dry friction"))
+        parts.append(dry + (" dry friction, set-valued (the magnet sticks)" if p.sticks else " dry friction"))
     return "friction F_f: " + ", ".join(parts)
 
 
@@ -465,11 +465,10 @@ def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataF
                          f"{num(c['dataset']['low'])}–{num(c['dataset']['high'])} A): gain {num(abs(b.G[keep][0]), 3)} "
                          f"cm/A at {num(b.w[keep][0], 1)} rad/s, {resonance}; simulation FIT ceiling "
                          f"{num(b.fit_ceiling, 1)} %.")
-    sticks = p.v_creep == 0 and p.coulomb_lower + p.coulomb_upper + p.stiction_lower + p.stiction_upper > 0
     facts.append("The Jacobian is the model of infinitesimal motion about a rest, heavily damped by the friction's "
                  "damping at rest"
                  + (" (it leaves out the set-valued dry friction, which has no slope at rest and holds the magnets "
-                    "still under inputs that small)" if sticks else "")
+                    "still under inputs that small)" if p.sticks else "")
                  + "; the lab's inputs move the magnets far beyond that, so "
                  + ("the identified models are compared with the best linear approximation of their input class, as "
                     "in the figure below." if blas else
