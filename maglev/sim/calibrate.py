@@ -263,8 +263,8 @@ def with_dynamics(base: Levitator, **values: float) -> Levitator:
 def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
                  targets: FrictionTargets | None = None, step: float = 0.06,
                  verbose: bool = False) -> Levitator:
-    """Fit the bushings' damping law, t_phys and the sensor's stretch (``DYNAMICS_PARAMS``) by minimising
-    :func:`friction_cost`.
+    """Fit the bushings' damping law and Coulomb levels, t_phys and the sensor's stretch (``DYNAMICS_PARAMS``)
+    by minimising :func:`friction_cost`.
 
     Nelder-Mead on the log-parameters from ``base`` (initial simplex: each parameter
     times e^``step``; the mains line follows ``t_phys``, :func:`with_dynamics`);
