@@ -100,6 +100,9 @@ FRF_SEGMENT_S = 1.0  # s per Welch segment: 17+ averages on a 20 s record, 6.3 r
 FRF_COHERENCE = 0.5  # the real estimate's coherence above which the magnitudes are compared
 FRF_TOLERANCE_DB = 3.0
 FRF_REALISATIONS = 8
+# rad/s of the 1 ms label, for the FRF gap by band: below the slow mode (≈ 75-90 rad/s), around it, between the
+# modes, up to and around the fast one (≈ 218 rad/s), and above both (lo <= w < hi)
+FRF_BANDS = ((0.0, 50.0), (50.0, 100.0), (100.0, 150.0), (150.0, 215.0), (215.0, 300.0), (300.0, 600.0))
 # coherent / incoherent output per band (output_split): the records of RECORD_INPUTS but binary_signal_1
 SPLIT_RECORDS = ("binary_signal_2", "binary_signal_3", "binary_signal_4", "white_noise_1", "white_noise_2",
                  "white_noise_4")
@@ -269,6 +272,16 @@ class FrfComparison:
         d = self.difference_db
         return float(np.sqrt(np.mean(d ** 2))) if d.size else math.nan
 
+    def band_means_db(self, bands: tuple[tuple[float, float], ...] = FRF_BANDS) -> list[float]:
+        """Mean of :attr:`difference_db` within each band (rad/s, lo <= w < hi); nan where no bin is coherent.
+
+        Why: the largest difference alone cannot tell a level offset (every band off the same way,
+        as on binary_signal_2 and white_noise_4) from a misplaced mode (one band off, its
+        neighbours the other way)."""
+        w, d = self.real.w[self.band], self.difference_db
+        return [float(np.mean(d[(w >= lo) & (w < hi)])) if np.any((w >= lo) & (w < hi)) else math.nan
+                for lo, hi in bands]
+
     @property
     def real_error_db(self) -> float:
         """Median 1-σ magnitude error of the real estimate over the band [dB]."""
@@ -424,6 +437,10 @@ class Comparison:
                       f"where the real coherence >= {FRF_COHERENCE:g}",
                       f"{'record':>16} {'band rad/s':>10} {'bins':>5} {'max dB':>7} {'rms dB':>7} {'real ±dB':>9}"]
             lines += [c.text() for c in self.frf.values()]
+            lines += ["  mean dB, sim BLA over real, by band in rad/s (coherent bins only; '.': none):",
+                      f"{'':>16} " + "".join(f"{f'{lo:.0f}-{hi:.0f}':>9}" for lo, hi in FRF_BANDS)]
+            lines += [f"{rec:>16} " + "".join(f"{m:+9.1f}" if math.isfinite(m) else f"{'.':>9}"
+                                              for m in c.band_means_db()) for rec, c in self.frf.items()]
         return "\n".join(lines)
 
 
