@@ -281,8 +281,8 @@ class FrfComparison:
         as on binary_signal_2 and white_noise_4) from a misplaced mode (one band off, its
         neighbours the other way)."""
         w, d = self.real.w[self.band], self.difference_db
-        return [float(np.mean(d[(w >= lo) & (w < hi)])) if np.any((w >= lo) & (w < hi)) else math.nan
-                for lo, hi in bands]
+        inside = [(w >= lo) & (w < hi) for lo, hi in bands]
+        return [float(np.mean(d[k])) if k.any() else math.nan for k in inside]
 
     @property
     def real_error_db(self) -> float:
