@@ -64,7 +64,7 @@ from maglev.refdata import load_record
 
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
-           "output_std", "output_split", "record_frf", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
+           "output_std", "output_split", "hops", "record_frf", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
 STAIR_TAIL = 50.0
@@ -154,6 +154,20 @@ def output_std_parts(data: IOData, parts: int = STD_PARTS) -> tuple[float, ...]:
     thirds differ by 1.7x); their spread says how well a single record knows its own std.
     """
     return tuple(float(np.std(piece)) for piece in np.array_split(data.trim(TRANSIENT_FRACTION).y, parts))
+
+
+HOP_LEVEL = 12.0  # cm: the rig's readings exceed it only in binary_signal_2's ballistic hops
+
+
+def hops(data: IOData, level: float = HOP_LEVEL) -> tuple[float, float]:
+    """(share of the reading above ``level``, largest reading [cm]) after the start-up transient.
+
+    Why: on the rig, binary α .25 over 1.5-4 A launches the upper magnet in free flights that read up
+    to 15.6 cm, and no other record passes 10.5 cm; the output std alone cannot tell such hops from a
+    larger steady swing.
+    """
+    y = data.trim(TRANSIENT_FRACTION).y
+    return float(np.mean(y > level)), float(y.max())
 
 
 def output_level(data: IOData) -> float:
@@ -329,6 +343,7 @@ class Comparison:
     # record -> (real, sim) output_std_parts and output_level of the std records
     std_parts: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] | None = None
     levels: dict[str, tuple[float, float]] | None = None
+    hops: dict[str, tuple[tuple[float, float], tuple[float, float]]] | None = None  # record -> (real, sim) hops()
     startup_real: tuple[float, float] = (math.nan, math.nan)  # 0 -> 3 A (binary_signal_9): peak, final [cm]
     startup_sim: tuple[float, float] = (math.nan, math.nan)
     fourth_order: dict[str, tuple[list[Mode], list[Mode]]] | None = None  # record -> (real, sim) OE(4,4,5) modes
@@ -412,6 +427,11 @@ class Comparison:
                 ok = "yes" if abs(sim / real - 1) <= RATIO_TOLERANCE else "no"
                 lines.append(f"  binary α .25 / white noise, both 1.5-4 A: real {real:.1f}x, sim {sim:.1f}x "
                              f"({sim / real - 1:+.0%}; within {RATIO_TOLERANCE:.0%}: {ok})")
+            if self.hops:
+                lines.append(f"  hops: share of the kept reading above {HOP_LEVEL:g} cm, real / sim, and its largest "
+                             "value [cm], real / sim")
+                lines += [f"{rec:>16} {RECORD_INPUTS.get(rec, ''):>18} {hr:7.2%} {hs:7.2%} {mr:7.2f} {ms:7.2f}"
+                          for rec, ((hr, mr), (hs, ms)) in self.hops.items()]
         if self.split:
             lines += ["", f"Output explained by the input (coherent) and not (incoherent): rms per band [cm], "
                       f"trim {FRF_PREPROCESS.trim}, detrended, {FRF_SEGMENT_S:g} s Welch segments",
@@ -475,6 +495,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     stds = {rec: tuple(output_std(d) for d in pairs[rec]) for rec in std_records}
     std_parts = {rec: tuple(output_std_parts(d) for d in pairs[rec]) for rec in std_records}
     levels = {rec: tuple(output_level(d) for d in pairs[rec]) for rec in std_records}
+    hop_numbers = {rec: tuple(hops(d) for d in pairs[rec]) for rec in std_records}
     fourth = {rec: tuple(fourth_order_modes_of(d) for d in pairs[rec]) for rec in fourth_order_records}
     split = {rec: tuple(output_split(d) for d in pairs[rec]) for rec in split_records}
     (rise_r, over_r), (rise_s, over_s) = stair_step(stair), stair_step(sim_stair)
@@ -494,7 +515,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         rise_real=rise_r, rise_sim=rise_s,
         alpha_real=alpha(wn), alpha_sim=alpha(sim_wn), modes=modes,
         overshoot_real=over_r, overshoot_sim=over_s, stds=stds, std_parts=std_parts or None,
-        levels=levels or None, fourth_order=fourth or None,
+        levels=levels or None, hops=hop_numbers or None, fourth_order=fourth or None,
         armax=tuple(armax_modes_of(d) for d in pairs[ARMAX_RECORD]) if armax_check else None,
         armax_noise_free=armax_modes_of(lev.simulate(pairs[ARMAX_RECORD][0].u, Ts=pairs[ARMAX_RECORD][0].Ts,
                                                      seed=seed, noise=False)) if armax_check else None,

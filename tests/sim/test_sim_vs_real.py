@@ -127,6 +127,38 @@ def test_output_std_parts_are_the_stds_of_consecutive_pieces_after_the_transient
     assert sim_vs_real.output_level(data) == pytest.approx(7.0, abs=1e-12)
 
 
+def test_hops_are_the_share_and_the_largest_reading_above_the_level_after_the_transient():
+    # 400 samples: the first 100 (TRANSIENT_FRACTION) are dropped, so the 20-cm start-up peak does not count;
+    # of the 300 kept, 15 read 13 cm and 3 read exactly the level (not above it)
+    y = np.full(400, 8.0)
+    y[10], y[200:215], y[300:303] = 20.0, 13.0, sim_vs_real.HOP_LEVEL
+    data = IOData(u=np.zeros(400), y=y, Ts=0.001)
+    assert sim_vs_real.hops(data) == pytest.approx((15 / 300, 13.0), abs=1e-12)
+    assert sim_vs_real.hops(data, level=7.0) == pytest.approx((1.0, 13.0), abs=1e-12)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_only_the_rigs_alpha_quarter_full_range_record_hops_and_the_table_prints_the_hops(full_comparison):
+    # measured on the rig (docs/simulator.md, eleventh look): binary α .25 over 1.5-4 A reads above 12 cm on
+    # 1.76 % of its kept samples, up to 15.55 cm; no other record passes 10.5 cm, binary α .5 over the same
+    # range included (10.43 cm)
+    hops = full_comparison.hops
+    assert list(hops) == list(sim_vs_real.STD_RECORDS)
+    (share, top), _ = hops["binary_signal_2"]
+    assert share > 0.01 and top > 15.0
+    for rec, ((share, top), _) in hops.items():
+        if rec != "binary_signal_2":
+            assert share == 0.0 and top < 10.5, rec
+    table = full_comparison.table().splitlines()
+    head = next(i for i, line in enumerate(table) if line.startswith("  hops: share of the kept reading above"))
+    for line, (rec, ((hr, mr), (hs, ms))) in zip(table[head + 1:], hops.items()):
+        cells = line.split()
+        assert cells[0] == rec and " ".join(cells[1:-4]) == sim_vs_real.RECORD_INPUTS[rec]
+        assert [float(c.rstrip("%")) / 100 for c in cells[-4:-2]] == pytest.approx([hr, hs], abs=0.51e-4)
+        assert [float(c) for c in cells[-2:]] == pytest.approx([mr, ms], abs=0.0051)
+
+
 @needs_real
 @pytest.mark.realdata
 def test_the_rigs_small_white_noise_records_are_less_steady_than_the_std_band_is_wide(full_comparison):
