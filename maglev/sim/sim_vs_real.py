@@ -32,7 +32,13 @@ The issue-15 checks (``ARMAX_ORDERS``, ``FRF_CLASSES``):
   for the same input class (:func:`maglev.sim.bla.bla`), both trimmed and detrended at 1 ms,
   compared in dB where the real estimate's coherence is at least ``FRF_COHERENCE``: the
   largest difference, its rms, and its mean per band of ``FRF_BANDS`` (a level offset
-  shows in every band, a misplaced mode in one).
+  shows in every band, a misplaced mode in one).  Beside the largest difference stands what
+  an exact simulator would read from the real estimate's own error alone
+  (:meth:`FrfComparison.exact_max_db`, ≈ 2.2 dB on the rig's records).
+
+Beside the output stds, :func:`hops` gives each record's share of readings above
+``HOP_LEVEL`` and its largest reading: on the rig only ``binary_signal_2`` hops (the upper
+magnet thrown up to readings of 15.6 cm), which its std alone does not show.
 
 The output of each of ``SPLIT_RECORDS``, real and simulated, is split per band
 (``SPLIT_BANDS``) into the rms the input explains linearly (coherent) and the rest
@@ -64,7 +70,8 @@ from maglev.refdata import load_record
 
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
-           "output_std", "output_split", "hops", "record_frf", "stair_averages", "stair_step", "quantisation_step", "noise_psd"]
+           "output_std", "output_split", "hops", "record_frf", "stair_averages", "stair_step", "quantisation_step",
+           "noise_psd"]
 
 STAIR_LEVELS = 21
 STAIR_TAIL = 50.0
@@ -157,14 +164,14 @@ def output_std_parts(data: IOData, parts: int = STD_PARTS) -> tuple[float, ...]:
     return tuple(float(np.std(piece)) for piece in np.array_split(data.trim(TRANSIENT_FRACTION).y, parts))
 
 
-HOP_LEVEL = 12.0  # cm: the rig's readings exceed it only in binary_signal_2's ballistic hops
+HOP_LEVEL = 12.0  # cm: the rig's readings exceed it only in binary_signal_2's hops
 
 
 def hops(data: IOData, level: float = HOP_LEVEL) -> tuple[float, float]:
     """(share of the reading above ``level``, largest reading [cm]) after the start-up transient.
 
-    Why: on the rig, binary α .25 over 1.5-4 A launches the upper magnet in free flights that read up
-    to 15.6 cm, and no other record passes 10.5 cm; the output std alone cannot tell such hops from a
+    Why: on the rig, binary α .25 over 1.5-4 A throws the upper magnet up in hops that read up to
+    15.6 cm, and no other record passes 10.5 cm; the output std alone cannot tell such hops from a
     larger steady swing.
     """
     y = data.trim(TRANSIENT_FRACTION).y
@@ -478,8 +485,8 @@ class Comparison:
                       f"{'record':>16} {'band rad/s':>10} {'bins':>5} {'max dB':>7} {'rms dB':>7} {'real ±dB':>9} "
                       f"{'max if exact':>12}"]
             lines += [c.text() for c in self.frf.values()]
-            lines.append("  max if exact: the median max dB a BLA equal to the rig's true response would show, from the "
-                         "real estimate's own error (real ±dB, 1σ per bin) alone")
+            lines.append("  max if exact: the median max dB a BLA equal to the rig's true response would show, "
+                         "from the real estimate's own error (real ±dB, 1σ per bin) alone")
             lines += ["  mean dB, sim BLA over real, by band in rad/s (coherent bins only; '.': none):",
                       f"{'':>16} " + "".join(f"{f'{lo:.0f}-{hi:.0f}':>9}" for lo, hi in FRF_BANDS)]
             lines += [f"{rec:>16} " + "".join(f"{m:+9.1f}" if math.isfinite(m) else f"{'.':>9}"
