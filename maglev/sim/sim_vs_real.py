@@ -44,7 +44,11 @@ The output of each of ``SPLIT_RECORDS``, real and simulated, is split per band
 (``SPLIT_BANDS``) into the rms the input explains linearly (coherent) and the rest
 (:func:`output_split`): equal output stds can rest on different parts.  On
 ``white_noise_2`` the rig's output is mostly incoherent (0-30 rad/s: 0.0017 cm coherent
-vs 0.0134 cm), the simulator's replay mostly coherent (0.0104 vs 0.0023 cm).
+vs 0.0134 cm), the simulator's replay mostly coherent (0.0100 vs 0.0026 cm).  The coherent
+part per A of input (:func:`coherent_gain`, 30-150 rad/s) compared across the records of one
+input class (``RANGE_CLASSES``) measures the response's range dependence: a linear plant
+passes the same share at every range, the rig's share grows with the range in every class
+(uniform ×5.0 from 0.75 to 2.5 A, binary α .5 ×1.5 and α .25 ×1.2 from 1.5 to 2.5 A).
 
 Frequencies are in rad/s of the 1 ms label the records carry.
 """
@@ -70,8 +74,8 @@ from maglev.refdata import load_record
 
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
-           "output_std", "output_split", "hops", "record_frf", "stair_averages", "stair_step", "quantisation_step",
-           "noise_psd"]
+           "output_std", "output_split", "coherent_gain", "hops", "record_frf", "stair_averages", "stair_step",
+           "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
 STAIR_TAIL = 50.0
@@ -113,12 +117,18 @@ EXACT_DRAWS = 2000  # Monte Carlo draws of FrfComparison.exact_max_db
 # rad/s of the 1 ms label, for the FRF gap by band: below the slow mode (≈ 75-90 rad/s), around it, between the
 # modes, up to and around the fast one (≈ 218 rad/s), and above both (lo <= w < hi)
 FRF_BANDS = ((0.0, 50.0), (50.0, 100.0), (100.0, 150.0), (150.0, 215.0), (215.0, 300.0), (300.0, 600.0))
-# coherent / incoherent output per band (output_split): the records of RECORD_INPUTS but binary_signal_1
-SPLIT_RECORDS = ("binary_signal_2", "binary_signal_3", "binary_signal_4", "white_noise_1", "white_noise_2",
-                 "white_noise_4")
+# coherent / incoherent output per band (output_split): the records of RECORD_INPUTS
+SPLIT_RECORDS = ("binary_signal_1", "binary_signal_2", "binary_signal_3", "binary_signal_4", "white_noise_1",
+                 "white_noise_2", "white_noise_4")
 # rad/s of the 1 ms label: below, at and above the two lightly damped modes, and the rest up to the Nyquist
 # frequency (whose own bin, half a bin wide, is left out: lo <= w < hi)
 SPLIT_BANDS = ((0.0, 30.0), (30.0, 150.0), (150.0, 400.0), (400.0, math.pi / 1e-3))
+
+# input class -> its records of SPLIT_RECORDS, smallest range first: the response's range dependence (coherent_gain)
+RANGE_CLASSES = {"uniform": ("white_noise_2", "white_noise_1", "white_noise_4"),
+                 "bin α.5": ("binary_signal_4", "binary_signal_3"),
+                 "bin α.25": ("binary_signal_1", "binary_signal_2")}
+GAIN_BAND = SPLIT_BANDS[1]  # rad/s: around the slow mode, where every record's output is largely coherent
 
 Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 
@@ -196,6 +206,20 @@ def output_split(data: IOData, bands: tuple[tuple[float, float], ...] = SPLIT_BA
     """
     frf = record_frf(data)
     return [frf.band_rms(lo, hi) for lo, hi in bands]
+
+
+def coherent_gain(data: IOData, band: tuple[float, float] = GAIN_BAND) -> float:
+    """Coherent output rms [cm] in ``band`` (as :func:`output_split`) per A of input std, both after
+    ``FRF_PREPROCESS``.
+
+    Why: within one input class (same distribution shape and switching, another range) a linear
+    plant passes the same share at every range, so the ratio across a class's records
+    (``RANGE_CLASSES``) says how far the response depends on the range.  On the rig it grows
+    with the range in every class.
+    """
+    pre = FRF_PREPROCESS.apply(data)
+    coherent, _ = bla_mod.frequency_response(pre, FRF_SEGMENT_S).band_rms(*band)
+    return coherent / float(np.std(pre.u))
 
 
 def _noise_numbers(data: IOData) -> tuple[float, float, float]:
@@ -377,6 +401,7 @@ class Comparison:
     frf: dict[str, FrfComparison] | None = None  # record -> real FRF vs simulated BLA
     # record -> (real, sim) (coherent, incoherent) output rms [cm] per band of SPLIT_BANDS
     split: dict[str, tuple[list[tuple[float, float]], list[tuple[float, float]]]] | None = None
+    gains: dict[str, tuple[float, float, float]] | None = None  # record -> (input range [A], real, sim) coherent_gain
 
     @property
     def std_ratio(self) -> tuple[float, float]:
@@ -467,6 +492,17 @@ class Comparison:
                 for label, name, parts in (("real", rec, real), ("sim", "", sim)):
                     lines.append(f"{name:>16} {RECORD_INPUTS.get(rec, '') if name else '':>18} {label:>4} "
                                  + "".join(f"  {c:6.4f}|{i:6.4f}" for c, i in parts))
+        if self.gains:
+            lo, hi = GAIN_BAND
+            lines += ["", f"Range dependence: coherent output per A of input std, {lo:.0f}-{hi:.0f} rad/s [cm/A], "
+                      "by input class, smallest range first",
+                      f"{'class':>16} {'ranges [A]':>18}   {'real':<32}sim"]
+            for cls, recs in RANGE_CLASSES.items():
+                if all(rec in self.gains for rec in recs):
+                    ranges, real, sim = zip(*(self.gains[rec] for rec in recs))
+                    lines.append(f"{cls:>16} {' '.join(f'{r:.2f}' for r in ranges):>18}   "
+                                 f"{_gains_text(real):<32}{_gains_text(sim)}")
+            lines.append("  xN: largest range over smallest; a linear plant shows x1.00 in every class")
         if self.armax:
             lines += ["", f"ARMAX {list(ARMAX_ORDERS)} on {ARMAX_RECORD} at 1 ms (mean removed, first half): "
                       f"lightly damped modes (wn/zeta) in {SLOW_BAND[0]:g}-{SLOW_BAND[1]:g} and "
@@ -494,6 +530,11 @@ class Comparison:
         return "\n".join(lines)
 
 
+def _gains_text(gains: tuple[float, ...]) -> str:
+    """A class's coherent gains, smallest range first, and the largest range's over the smallest's."""
+    return " ".join(f"{g:.4f}" for g in gains) + f" x{gains[-1] / gains[0]:.2f}"
+
+
 def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] = POLE_RECORDS,
             seed: int = 1, std_records: tuple[str, ...] = STD_RECORDS,
             fourth_order_records: tuple[str, ...] = POLE_RECORDS + (WHITE_RECORD,),
@@ -507,7 +548,8 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     without the measurement noise (the noise-free fit shows what the plant itself
     offers the estimator); ``frf_records``: real
     FRF vs the simulator's BLA (cached on disk, :mod:`maglev.sim.bla`); ``split_records``:
-    coherent and incoherent output per band (:func:`output_split`).
+    coherent and incoherent output per band (:func:`output_split`), and for those of
+    ``RANGE_CLASSES`` the coherent output per A (:func:`coherent_gain`).
     """
     stair = load_record("working_region", root)
     sim_stair = lev.simulate(stair.u, Ts=stair.Ts, seed=seed)
@@ -526,6 +568,9 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     hop_numbers = {rec: tuple(hops(d) for d in pairs[rec]) for rec in std_records}
     fourth = {rec: tuple(fourth_order_modes_of(d) for d in pairs[rec]) for rec in fourth_order_records}
     split = {rec: tuple(output_split(d) for d in pairs[rec]) for rec in split_records}
+    ranged = {rec for recs in RANGE_CLASSES.values() for rec in recs}
+    gains = {rec: (float(np.ptp(pairs[rec][0].u)), *(coherent_gain(d) for d in pairs[rec]))
+             for rec in split_records if rec in ranged}
     (rise_r, over_r), (rise_s, over_s) = stair_step(stair), stair_step(sim_stair)
 
     def alpha(d: IOData) -> float:
@@ -548,7 +593,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         armax_noise_free=armax_modes_of(lev.simulate(pairs[ARMAX_RECORD][0].u, Ts=pairs[ARMAX_RECORD][0].Ts,
                                                      seed=seed, noise=False)) if armax_check else None,
         frf={rec: compare_frf(lev, rec, root, pairs[rec][0] if rec in pairs else None) for rec in frf_records} or None,
-        split=split or None,
+        split=split or None, gains=gains or None,
     )
 
 

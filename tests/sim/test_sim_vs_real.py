@@ -138,6 +138,61 @@ def test_hops_are_the_share_and_the_largest_reading_above_the_level_after_the_tr
     assert sim_vs_real.hops(data, level=7.0) == pytest.approx((1.0, 13.0), abs=1e-12)
 
 
+def _uniform_record(half_range: float, seed: int, plant) -> IOData:
+    """200 s of uniform white noise about 2.75 A through ``plant`` (a function of the deviation from 2.75 A)."""
+    e = np.random.default_rng(seed).uniform(-half_range, half_range, 200_000)
+    return IOData(u=2.75 + e, y=plant(e), Ts=0.001)
+
+
+def test_coherent_gain_is_a_linear_plants_band_rms_per_a_at_every_range_and_grows_with_a_dead_zone():
+    # y = 0.1 q^-1 / (1 - 0.9 q^-1) u, white input of std s: the output power in 30 <= w < 150 rad/s is
+    # s^2 / pi times the integral of |G(e^jθ)|^2 over θ = w Ts (one-sided), so the gain is the root of
+    # (1/pi) * integral of 0.01 / (1.81 - 1.8 cos θ), whatever the range
+    from scipy.integrate import quad
+    from scipy.signal import lfilter
+
+    def linear(e):
+        return lfilter([0.0, 0.1], [1.0, -0.9], e)
+
+    lo, hi = sim_vs_real.GAIN_BAND
+    assert (lo, hi) == (30.0, 150.0)
+    expected = np.sqrt(quad(lambda t: 0.01 / (1.81 - 1.8 * np.cos(t)), lo * 1e-3, hi * 1e-3)[0] / np.pi)
+    small, large = (sim_vs_real.coherent_gain(_uniform_record(r, seed, linear)) for r, seed in ((0.375, 1), (1.25, 2)))
+    assert small == pytest.approx(expected, rel=0.03) and large == pytest.approx(expected, rel=0.03)
+
+    # a dead zone of ±0.3 A before the same filter passes little of a ±0.375 A input, most of a ±1.25 A one
+    def dead_zone(e):
+        return linear(np.sign(e) * np.maximum(np.abs(e) - 0.3, 0.0))
+
+    small, large = (sim_vs_real.coherent_gain(_uniform_record(r, 1, dead_zone)) for r in (0.375, 1.25))
+    assert large / small > 2.0
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_rigs_response_grows_with_the_range_in_every_input_class_and_the_table_prints_it(full_comparison):
+    # measured on the rig (docs/simulator.md, twelfth look): 30-150 rad/s, the coherent output per A of input
+    # std grows with the range in each class, ×5.0 on uniform white noise from 0.75 to 2.5 A (0.0052, 0.0181,
+    # 0.0265 cm/A), ×1.52 on binary α .5 and ×1.20 on binary α .25 from 1.5 to 2.5 A
+    gains = full_comparison.gains
+    assert set(gains) == {rec for recs in sim_vs_real.RANGE_CLASSES.values() for rec in recs}
+    expected = {"uniform": (4.5, 5.6), "bin α.5": (1.35, 1.7), "bin α.25": (1.1, 1.35)}
+    table = full_comparison.table().splitlines()
+    head = next(i for i, line in enumerate(table) if line.startswith("Range dependence: coherent output per A"))
+    for line, (cls, recs) in zip(table[head + 2:], sim_vs_real.RANGE_CLASSES.items()):
+        ranges, real, sim = zip(*(gains[rec] for rec in recs))
+        assert np.all(np.diff(ranges) > 0) and np.all(np.diff(real) > 0), cls
+        assert expected[cls][0] <= real[-1] / real[0] <= expected[cls][1], cls
+        # the printed row: class, ranges, real gains and ratio, simulated gains and ratio
+        cells = line.split()
+        k = len(recs)
+        assert " ".join(cells[:-(3 * k + 2)]) == cls
+        assert [float(c) for c in cells[-(3 * k + 2):-(2 * k + 2)]] == pytest.approx(ranges, abs=0.0051)
+        for cell, numbers in ((cells[-(2 * k + 2):-(k + 1)], real), (cells[-(k + 1):], sim)):
+            assert [float(c) for c in cell[:-1]] == pytest.approx(numbers, abs=0.51e-4)
+            assert float(cell[-1].lstrip("x")) == pytest.approx(numbers[-1] / numbers[0], abs=0.0051)
+
+
 @needs_real
 @pytest.mark.realdata
 def test_only_the_rigs_alpha_quarter_full_range_record_hops_and_the_table_prints_the_hops(full_comparison):
