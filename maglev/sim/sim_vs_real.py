@@ -128,7 +128,7 @@ SPLIT_BANDS = ((0.0, 30.0), (30.0, 150.0), (150.0, 400.0), (400.0, math.pi / 1e-
 RANGE_CLASSES = {"uniform": ("white_noise_2", "white_noise_1", "white_noise_4"),
                  "bin α.5": ("binary_signal_4", "binary_signal_3"),
                  "bin α.25": ("binary_signal_1", "binary_signal_2")}
-GAIN_BAND = SPLIT_BANDS[1]  # rad/s: around the slow mode, where every record's output is largely coherent
+GAIN_BAND = SPLIT_BANDS[1]  # rad/s: around the slow mode (≈ 75-90 rad/s), below the fast one
 
 Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 

@@ -179,6 +179,7 @@ def test_the_rigs_response_grows_with_the_range_in_every_input_class_and_the_tab
     expected = {"uniform": (4.5, 5.6), "bin α.5": (1.35, 1.7), "bin α.25": (1.1, 1.35)}
     table = full_comparison.table().splitlines()
     head = next(i for i, line in enumerate(table) if line.startswith("Range dependence: coherent output per A"))
+    assert table[head + 2 + len(sim_vs_real.RANGE_CLASSES)].startswith("  xN: largest range over smallest")
     for line, (cls, recs) in zip(table[head + 2:], sim_vs_real.RANGE_CLASSES.items()):
         ranges, real, sim = zip(*(gains[rec] for rec in recs))
         assert np.all(np.diff(ranges) > 0) and np.all(np.diff(real) > 0), cls
