@@ -217,9 +217,8 @@ def coherent_gain(data: IOData, band: tuple[float, float] = GAIN_BAND) -> float:
     (``RANGE_CLASSES``) says how far the response depends on the range.  On the rig it grows
     with the range in every class.
     """
-    pre = FRF_PREPROCESS.apply(data)
-    coherent, _ = bla_mod.frequency_response(pre, FRF_SEGMENT_S).band_rms(*band)
-    return coherent / float(np.std(pre.u))
+    coherent, _ = record_frf(data).band_rms(*band)
+    return coherent / float(np.std(FRF_PREPROCESS.apply(data).u))
 
 
 def _noise_numbers(data: IOData) -> tuple[float, float, float]:
