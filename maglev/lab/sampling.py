@@ -14,7 +14,7 @@ import numpy as np
 from maglev.data import IOData
 from maglev.lab.averages import check_tail, get_average
 
-__all__ = ["RiseTime", "rise_time"]
+__all__ = ["HeldStep", "RiseTime", "held_steps", "rise_time"]
 
 
 @dataclass(frozen=True)
@@ -64,21 +64,35 @@ def _first_crossing(r: np.ndarray, level: float) -> float:
     return k - 1 + (level - r[k - 1]) / (r[k] - r[k - 1])
 
 
-def rise_time(
+@dataclass(frozen=True)
+class HeldStep:
+    """One input step between two held levels: the input ``u0`` -> ``u1`` at sample ``k``, held for
+    ``length`` samples after it, and the stationary outputs ``y0`` before and ``y1`` after it."""
+
+    k: int
+    length: int
+    u0: float
+    u1: float
+    y0: float
+    y1: float
+
+    def response(self, y: np.ndarray, length: int | None = None) -> np.ndarray:
+        """The step's response in ``y`` normalised to go from 0 (``y0``) to 1 (``y1``), over ``length``
+        samples (default: the whole hold)."""
+        n = self.length if length is None else length
+        return (y[self.k:self.k + n] - self.y0) / (self.y1 - self.y0)
+
+
+def held_steps(
     data: IOData,
     *,
     u_range: tuple[float, float] | None = None,
     min_len: int = 60,
     tail: float = 50.0,
-) -> RiseTime:
-    """Rise time from every step of ``data.u`` whose two levels lie in ``u_range``.
-
-    A step is any change of the input held for at least ``min_len`` samples on both
-    sides.  Each step's response over the shortest such holding length is normalised
-    by the stationary levels before and after it (means of the last ``tail`` % of the
-    two holding periods), so up and down steps of any size average together; noise
-    shrinks by the square root of the number of steps.
-    """
+) -> list[HeldStep]:
+    """Every step of ``data.u`` whose two levels lie in ``u_range``, held for at least ``min_len``
+    samples on both sides and moving the output; the stationary levels are the means of the last
+    ``tail`` % of the two holding periods."""
     u, y = data.u, data.y
     lo, hi = u_range if u_range is not None else (-np.inf, np.inf)
     if not isinstance(min_len, int) or min_len < 4:
@@ -93,14 +107,31 @@ def rise_time(
             continue
         y0, y1 = get_average(y[a:k], tail), get_average(y[k:b], tail)
         if abs(y1 - y0) > 0:
-            steps.append((k, b - k, y0, y1))
+            steps.append(HeldStep(k=int(k), length=int(b - k), u0=float(u[a]), u1=float(u[k]), y0=y0, y1=y1))
     if not steps:
         raise ValueError(
             f"{data.name or 'data'}: no input step with both levels in u_range={u_range} held for "
             f">= min_len={min_len} samples; expected a staircase or step record"
         )
-    length = min(s[1] for s in steps)
-    response = np.mean([(y[k:k + length] - y0) / (y1 - y0) for k, _, y0, y1 in steps], axis=0)
+    return steps
+
+
+def rise_time(
+    data: IOData,
+    *,
+    u_range: tuple[float, float] | None = None,
+    min_len: int = 60,
+    tail: float = 50.0,
+) -> RiseTime:
+    """Rise time from every step of ``data.u`` whose two levels lie in ``u_range`` (:func:`held_steps`).
+
+    Each step's response over the shortest holding length is normalised by the
+    stationary levels before and after it, so up and down steps of any size average
+    together; noise shrinks by the square root of the number of steps.
+    """
+    steps = held_steps(data, u_range=u_range, min_len=min_len, tail=tail)
+    length = min(s.length for s in steps)
+    response = np.mean([s.response(data.y, length) for s in steps], axis=0)
     t10, t90 = _first_crossing(response, 0.1), _first_crossing(response, 0.9)
     return RiseTime(samples=float(t90 - t10), Ts=data.Ts, n_steps=len(steps), response=response,
                     t10=float(t10), t90=float(t90))
