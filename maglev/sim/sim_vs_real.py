@@ -64,7 +64,7 @@ from scipy import signal
 
 from maglev.lab.averages import get_stationary_averages
 from maglev.lab.input_design import choose_alpha, output_spectrum
-from maglev.lab.sampling import rise_time
+from maglev.lab.sampling import held_steps, rise_time
 from maglev.sim import bla as bla_mod
 from maglev.data import IOData
 from maglev.estimation import armax, oe
@@ -75,6 +75,7 @@ from maglev.refdata import load_record
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
            "output_std", "output_split", "coherent_gain", "hops", "record_frf", "stair_averages", "stair_step",
+           "StairStep", "stair_steps",
            "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
@@ -129,6 +130,7 @@ RANGE_CLASSES = {"uniform": ("white_noise_2", "white_noise_1", "white_noise_4"),
                  "bin α.5": ("binary_signal_4", "binary_signal_3"),
                  "bin α.25": ("binary_signal_1", "binary_signal_2")}
 GAIN_BAND = SPLIT_BANDS[1]  # rad/s: around the slow mode (≈ 75-90 rad/s), below the fast one
+STAIR_STEP_RANGE = (1.5, 4.0)  # A: the staircase's levels inside the working region (rise time, overshoot)
 
 Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 
@@ -140,10 +142,42 @@ def stair_averages(data: IOData) -> tuple[np.ndarray, np.ndarray]:
             get_stationary_averages(data.y, STAIR_LEVELS, STAIR_TAIL))
 
 
-def stair_step(data: IOData, u_range: tuple[float, float] = (1.5, 4.0)) -> tuple[float, float]:
+def stair_step(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE) -> tuple[float, float]:
     """(rise time [samples], overshoot [fraction]) of the mean normalised stair step in ``u_range``."""
     rt = rise_time(data, u_range=u_range)
     return rt.samples, float(rt.response.max() - 1.0)
+
+
+@dataclass(frozen=True)
+class StairStep:
+    """One stair step's numbers: the levels ``u0`` -> ``u1`` [A], its overshoot (fraction of the step) and
+    its band gain [cm/A]: the rms of |G| over a band (trapezoids on a 1 rad/s grid), G the DTFT of the step's impulse
+    response (the differenced response over the whole hold, per A of the step)."""
+
+    u0: float
+    u1: float
+    overshoot: float
+    band_gain: float
+
+
+def stair_steps(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE,
+                band: tuple[float, float] = GAIN_BAND) -> list[StairStep]:
+    """Overshoot and band gain of each stair step in ``u_range``, one by one.
+
+    Why: the mean normalised step (:func:`stair_step`) averages the working points away.  Step by
+    step, with the step size fixed, the numbers say how the dynamics change with the working point
+    alone, which the records with a wider input range confound with the range.
+    """
+    lo, hi = band
+    w = np.linspace(lo, hi, int(round(hi - lo)) + 1) * data.Ts  # rad/sample
+    out = []
+    for step in held_steps(data, u_range=u_range):
+        r = step.response(data.y)
+        h = np.diff(r, prepend=0.0) * (step.y1 - step.y0) / (step.u1 - step.u0)
+        g = np.exp(-1j * np.outer(w, np.arange(h.size))) @ h
+        power = np.trapezoid(np.abs(g) ** 2, w) / (w[-1] - w[0])
+        out.append(StairStep(u0=step.u0, u1=step.u1, overshoot=float(r.max() - 1.0), band_gain=float(np.sqrt(power))))
+    return out
 
 
 def noise_psd(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -401,6 +435,7 @@ class Comparison:
     # record -> (real, sim) (coherent, incoherent) output rms [cm] per band of SPLIT_BANDS
     split: dict[str, tuple[list[tuple[float, float]], list[tuple[float, float]]]] | None = None
     gains: dict[str, tuple[float, float, float]] | None = None  # record -> (input range [A], real, sim) coherent_gain
+    steps: tuple[list[StairStep], list[StairStep]] | None = None  # (real, sim) stair_steps of the staircase
 
     @property
     def std_ratio(self) -> tuple[float, float]:
@@ -422,6 +457,21 @@ class Comparison:
         real, sim = (self.fourth_order or {}).get(WHITE_RECORD, ([], []))
         return least_damped(real), least_damped(sim)
 
+    def _steps_lines(self) -> list[str]:
+        if not self.steps:
+            return []
+        lo, hi = GAIN_BAND
+        lines = ["", f"Stair steps one by one: overshoot, and |G| rms over {lo:.0f}-{hi:.0f} rad/s from the step's "
+                 "response [cm/A]",
+                 f"{'step [A]':>16} {'overshoot real':>15} {'sim':>6} {'gain real':>10} {'sim':>7}"]
+        sims = {(step.u0, step.u1): step for step in self.steps[1]}
+        for real in self.steps[0]:
+            sim = sims.get((real.u0, real.u1))
+            sim_text = f"{sim.overshoot:6.0%} " if sim else f"{'.':>6} "
+            lines.append(f"{f'{real.u0:.2f}->{real.u1:.2f}':>16} {real.overshoot:15.0%} {sim_text}"
+                         f"{real.band_gain:10.3f} " + (f"{sim.band_gain:7.3f}" if sim else f"{'.':>7}"))
+        return lines
+
     def table(self) -> str:
         lines = ["Static curve (mean of last 50 % of each 500-sample level) [cm]",
                  f"{'u [A]':>7} {'real':>8} {'sim':>8} {'diff':>8}"]
@@ -439,6 +489,7 @@ class Comparison:
                   f"  start-up 0->3 A peak [cm]   {self.startup_real[0]:9.2f} {self.startup_sim[0]:9.2f}",
                   f"  start-up 0->3 A final [cm]  {self.startup_real[1]:9.2f} {self.startup_sim[1]:9.2f}",
                   f"  alpha* (white_noise_4)      {self.alpha_real:9.2f} {self.alpha_sim:9.2f}",
+                  *self._steps_lines(),
                   "", f"Dominant mode of OE{OE_ORDERS} (nb, nf, nk) models, trimmed {TRANSIENT_FRACTION:.0%}, "
                   "detrended; wn in rad/s of the 1 ms label",
                   f"{'record':>16} {'wn real':>8} {'wn sim':>8} {'err':>6} {'zeta real':>9} {'zeta sim':>9} {'err':>6}"]
@@ -592,7 +643,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         armax_noise_free=armax_modes_of(lev.simulate(pairs[ARMAX_RECORD][0].u, Ts=pairs[ARMAX_RECORD][0].Ts,
                                                      seed=seed, noise=False)) if armax_check else None,
         frf={rec: compare_frf(lev, rec, root, pairs[rec][0] if rec in pairs else None) for rec in frf_records} or None,
-        split=split or None, gains=gains or None,
+        split=split or None, gains=gains or None, steps=(stair_steps(stair), stair_steps(sim_stair)),
     )
 
 

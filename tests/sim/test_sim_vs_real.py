@@ -168,6 +168,48 @@ def test_coherent_gain_is_a_linear_plants_band_rms_per_a_at_every_range_and_grow
     assert large / small > 2.0
 
 
+def test_stair_steps_give_a_linear_plants_step_overshoot_and_band_rms_at_every_level():
+    # a known plant, 80 rad/s ζ 0.2 sampled at 1 ms with a two-sample delay, on a staircase of 0.5 A levels held
+    # 500 samples (the lab's); each step in 1.5-4 A must read the plant's own step overshoot (control's step
+    # response) and the rms of its |G(e^jωTs)| over 30-150 rad/s (integrated by quad on control's evaluation)
+    import control as ct
+    from scipy.integrate import quad
+
+    from maglev.lab.signals import staircase
+
+    plant = ct.sample_system(ct.tf([80.0 ** 2], [1.0, 32.0, 80.0 ** 2]), 0.001) * ct.tf([1.0], [1.0, 0.0, 0.0], 0.001)
+    u = staircase(np.arange(0.0, 5.01, 0.5), 500)
+    y = 3.0 + ct.forced_response(plant, U=u).outputs
+    steps = sim_vs_real.stair_steps(IOData(u=u, y=y, Ts=0.001))
+    assert [(s.u0, s.u1) for s in steps] == [(1.5, 2.0), (2.0, 2.5), (2.5, 3.0), (3.0, 3.5), (3.5, 4.0)]
+    overshoot = ct.step_response(plant, T=np.arange(500) * 0.001).outputs.max() - 1.0
+    lo, hi = sim_vs_real.GAIN_BAND
+    band_rms = np.sqrt(quad(lambda w: abs(plant(np.exp(1j * w * 0.001))) ** 2, lo, hi, limit=200)[0] / (hi - lo))
+    assert 0.4 < overshoot < 0.6 and 1.0 < band_rms < 2.0  # the plant is the one described
+    for s in steps:  # (the lab's 500-sample hold leaves 1e-4 of ringing in the stationary levels)
+        assert s.overshoot == pytest.approx(overshoot, abs=1e-3)
+        assert s.band_gain == pytest.approx(band_rms, rel=1e-3)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_rigs_first_step_off_the_lift_off_overshoots_most_and_the_table_prints_every_step(full_comparison):
+    # measured on the rig's staircase (docs/simulator.md, thirteenth look): steps of 0.5 A, the lower magnet
+    # lifted off its seat between 1.0 and 1.5 A. 1.5 -> 2.0 A overshoots 51 % with 1.12 cm/A over 30-150 rad/s;
+    # the next steps 13 %, 18 %, 4 %, 2 % with 0.64, 0.65, 0.58, 0.38 cm/A
+    real, sim = full_comparison.steps
+    assert [(s.u0, s.u1) for s in real] == [(1.5, 2.0), (2.0, 2.5), (2.5, 3.0), (3.0, 3.5), (3.5, 4.0)]
+    assert [s.overshoot for s in real] == pytest.approx([0.512, 0.134, 0.176, 0.040, 0.019], abs=0.005)
+    assert [s.band_gain for s in real] == pytest.approx([1.117, 0.637, 0.646, 0.583, 0.379], abs=0.005)
+    table = full_comparison.table().splitlines()
+    head = next(i for i, line in enumerate(table) if line.startswith("Stair steps one by one"))
+    for line, r, s in zip(table[head + 2:head + 2 + len(real)], real, sim):
+        cells = line.split()
+        assert cells[0] == f"{r.u0:.2f}->{r.u1:.2f}"
+        assert [float(c.rstrip("%")) / 100 for c in cells[1:3]] == pytest.approx([r.overshoot, s.overshoot], abs=0.0051)
+        assert [float(c) for c in cells[3:5]] == pytest.approx([r.band_gain, s.band_gain], abs=0.00051)
+
+
 @needs_real
 @pytest.mark.realdata
 def test_the_rigs_response_grows_with_the_range_in_every_input_class_and_the_table_prints_it(full_comparison):
