@@ -49,6 +49,10 @@ part per A of input (:func:`coherent_gain`, 30-150 rad/s) compared across the re
 input class (``RANGE_CLASSES``) measures the response's range dependence: a linear plant
 passes the same share at every range, the rig's share grows with the range in every class
 (uniform ×5.0 from 0.75 to 2.5 A, binary α .5 ×1.5 and α .25 ×1.2 from 1.5 to 2.5 A).
+:func:`stair_steps` reads the staircase's 0.5 A steps from 1.5 to 4 A one by one (overshoot, and gain over
+the same band), so the working point can be told apart from the range: on the rig the gain falls with the
+working point as the simulator's does, and the damping grows (the first step after lift-off overshoots 51 %,
+the steps above 3 A 2-4 %).
 
 Frequencies are in rad/s of the 1 ms label the records carry.
 """
