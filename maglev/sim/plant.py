@@ -27,7 +27,8 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
 * a pure input delay; a laser reading ``y = y_off + h``, stretched above ``sensor_knee``
   (``Levitator.reading``), plus sensor noise (white +
   a narrow mains-ripple line) and a disturbance at each command switch, quantised to
-  the ADC step; optional process (force) noise.
+  the ADC step; optional process (force) noise, white and, as an option, a slow wander that small
+  command steps drive (``Levitator.wander``, off by default; the ``stuck_upper`` plant uses it).
 
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
 6-7 ms of physical time (notes §5).  By default the simulator reproduces the
@@ -56,6 +57,12 @@ __all__ = ["LevitatorParams", "Equilibrium", "LinearModel", "Levitator", "PLANTS
 U_MIN, U_MAX = 0.0, 10.0  # the rig's allowed command range [A]
 LABEL_TS = 1e-3  # the sampling period the lab's records are labelled with [s]
 _CM = 100.0  # cm per m: accelerations in cm/s^2 are 100 F/m
+# the small-step wander (Levitator.wander)
+WANDER_SMALL_STEP = 1.0  # A: a command step counts as small when nonzero and at most this
+WANDER_WINDOW = 50  # samples: the share of small steps is low-passed through the pole e^(-1/WANDER_WINDOW)
+WANDER_STEP_POLE = 0.95  # per sample: low pass (unit gain) of the command's |step|
+WANDER_STEP_REF = 2.5 / 3  # A: mean |step| of white noise U(1.5, 4) A, the lab's widest uniform input
+_WANDER_STREAM = 15  # the wander's random stream beside the record's seed
 
 
 @dataclass(frozen=True)
@@ -113,6 +120,10 @@ class LevitatorParams:
     noise_line_radius: float = 0.9198  # pole radius of the AR(2) line (its sharpness)
     quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
     force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
+    # a slow force on the upper magnet that small command steps drive (process noise, Levitator.wander; 0: off)
+    wander_force: float = 0.0  # N, its std while every step is small and as large as white noise U(1.5, 4) A
+    wander_tau: float = 1.0  # s (physical), its correlation time
+    wander_power: float = 1.0  # exponent of the share of small steps that scales it
     switch_noise: float = 0.004773  # cm per A of command step: a reading disturbance at each switch
     switch_noise_pole: float = 0.5  # its pole (per logged sample)
 
@@ -126,7 +137,7 @@ class LevitatorParams:
     def __post_init__(self) -> None:
         positive = ("m", "g", "a", "b", "n_coil", "c", "d", "h_top", "i_sat", "t_phys", "v_stribeck",
                     "quiet_level_lower", "quiet_level_upper", "quiet_power_lower", "quiet_power_upper",
-                    "age_half", "slip_renewal", "sensor_knee")
+                    "age_half", "slip_renewal", "sensor_knee", "wander_tau")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -136,7 +147,8 @@ class LevitatorParams:
                   "noise_std", "noise_line_hz", "quant", "force_noise", "gamma_quiet_lower",
                   "gamma_quiet_upper", "activity_fast_lower", "activity_fast_upper", "activity_slow_lower",
                   "activity_slow_upper", "activity_attack", "activity_release", "jitter_weight", "jitter_tau",
-                  "gamma_aged_lower", "gamma_aged_upper", "switch_noise", "sensor_pole")
+                  "gamma_aged_lower", "gamma_aged_upper", "switch_noise", "sensor_pole", "wander_force",
+                  "wander_power")
         for name in nonneg:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -392,6 +404,8 @@ class Levitator:
             force = rng.standard_normal(u.size) * p.force_noise
         else:
             force = np.zeros(u.size)
+        if noise and p.wander_force > 0:  # its own stream: the other noises stay those of the plant without it
+            force = force + self.wander(u, dt, np.random.default_rng(None if seed is None else [seed, _WANDER_STREAM]))
         z, h = _integrate(p, cur, force, dt, substeps, eq0.z, eq0.h)
         y = self.reading(h)
         if noise:
@@ -417,6 +431,27 @@ class Levitator:
             raise ValueError(f"U must be records x samples with at least 10 samples, got shape {U.shape}")
         dt, substeps, eq0, cur = self._drive(U, Ts, start, substeps)
         return self.reading(_integrate_batch(self.params, cur, dt, substeps, eq0.z, eq0.h))
+
+    def wander(self, u: np.ndarray, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """The slow force [N] on the upper magnet, per sample of the command ``u``, that small steps drive
+        (``simulate`` adds it as process noise; 0 without ``wander_force``).
+
+        White noise times s^k times the command's |step| low-passed (pole ``WANDER_STEP_POLE``, unit gain)
+        over ``WANDER_STEP_REF``, through an Ornstein-Uhlenbeck filter of correlation time ``wander_tau``
+        (``dt``: physical seconds per sample) scaled to std ``wander_force``.  s is the share of small
+        steps (nonzero and at most ``WANDER_SMALL_STEP``) over the last ≈ ``WANDER_WINDOW`` samples and
+        k = ``wander_power``, so a binary or constant input drives none.  Why: on the rig the output of
+        small white noise is mostly incoherent below 30 rad/s (docs/simulator.md, twelfth look), while the
+        constant-current record and the staircase show no such wander.
+        """
+        p = self.params
+        du = np.abs(np.diff(u, prepend=u[0]))
+        a_s = math.exp(-1.0 / WANDER_WINDOW)
+        share = signal.lfilter([1.0 - a_s], [1.0, -a_s], ((du > 0) & (du <= WANDER_SMALL_STEP)).astype(float))
+        steps = signal.lfilter([1.0 - WANDER_STEP_POLE], [1.0, -WANDER_STEP_POLE], du) / WANDER_STEP_REF
+        drive = rng.standard_normal(u.size) * share ** p.wander_power * steps
+        a = math.exp(-dt / p.wander_tau)
+        return signal.lfilter([math.sqrt(1.0 - a * a) * p.wander_force], [1.0, -a], drive)
 
     def reading(self, h: float | np.ndarray) -> np.ndarray:
         """Noise-free laser reading [cm] of the upper magnet's height ``h`` [cm]: ``y_off + h``, stretched
@@ -484,6 +519,19 @@ PLANTS: dict[str, dict[str, float]] = {
     # the defaults: light set-valued Coulomb friction on both bushings, a gentler class schedule and a 7 %
     # shorter time base, the static curve fitted to the simulated staircase (issue 15, 2026-11-26, ninth look)
     "stick_slip": {},
+    # the defaults with the upper bushing stuck (Coulomb 0.0047 N, static peak 0.022 N) and a slow wander force that
+    # small command steps drive, the static curve fitted to the simulated staircase: the uniform class graded by
+    # range as on the rig (issue 15, docs/simulator.md, twelfth and thirteenth looks); not the defaults: the
+    # stair's steps lose their overshoot, and binary_signal_2's frequency response stays 3.9 dB off
+    "stuck_upper": dict(
+        gamma_lower=0.65507, gamma_upper=0.43522, gamma_quiet_lower=3.1552, gamma_quiet_upper=4.8812,
+        quiet_level_lower=0.11941, quiet_level_upper=0.096609, quiet_power_lower=3.9102, quiet_power_upper=4.4297,
+        activity_fast_lower=0.022208, activity_fast_upper=0.017006, activity_slow_lower=0.33118,
+        activity_slow_upper=0.38903, activity_release=0.21675, jitter_weight=1.2217, jitter_tau=0.024123,
+        gamma_aged_lower=1.5158, gamma_aged_upper=1.6114, age_half=0.20708, slip_renewal=0.10453, t_phys=0.005985,
+        sensor_pole=16.833, sensor_knee=8.6541, coulomb_lower=0.0029912, coulomb_upper=0.0047059, a=0.37548, b=1.227,
+        n_coil=1.2043, kappa=0.2091, y_off=0.32621, i_sat=3.9104, stiction_upper=0.022265, v_stribeck=1.316,
+        v_creep=0.0, noise_line_hz=114.09, wander_force=0.022598, wander_tau=1.0, wander_power=3.4346),
     # the defaults earlier on 2026-11-26: the damping refitted with a sensor stretch, read through a sensor
     # that stretches above 8.7 cm towards a pole at 17 cm, the static curve refitted under it; no dry friction
     "stretched_sensor": dict(

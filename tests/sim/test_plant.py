@@ -10,7 +10,8 @@ from scipy import signal
 
 from maglev.estimation import arx
 from maglev.sim.calibrate import DYNAMICS_PARAMS, STATIC_PARAMS
-from maglev.sim.plant import _REST_AGE, DEFAULT_PLANT, PLANTS, Levitator, LevitatorParams, _Damping, _friction, rig
+from maglev.sim.plant import (_REST_AGE, DEFAULT_PLANT, PLANTS, WANDER_STEP_REF, Levitator, LevitatorParams, _Damping,
+                              _friction, rig)
 from maglev.lab.signals import random_binary
 
 
@@ -101,6 +102,39 @@ def test_a_named_plant_does_not_move_with_the_defaults(name):
     shifted = Levitator(params=LevitatorParams(**{**moved, **PLANTS[name]}))
     np.testing.assert_array_equal(shifted.simulate(u, seed=1).y, pinned.simulate(u, seed=1).y)
     assert rig(name).params == pinned.params
+
+
+def test_the_wander_is_an_ornstein_uhlenbeck_force_scaled_by_the_small_steps():
+    # every step of U(2, 2.75) A is small (at most 1 A), and their mean |step| is a third of the range, 0.25 A:
+    # 0.3 of WANDER_STEP_REF. After the share of small steps has settled at 1, the force is white noise times
+    # the low-passed |step| (≈ 0.3, scattering by ≈ 1 % of its power) through a first-order filter that keeps
+    # the variance: std 0.3 x wander_force, autocorrelation a^k at lag k with a = e^(-dt/τ)
+    lev = Levitator(LevitatorParams(wander_force=0.02, wander_tau=0.3, wander_power=2.0))
+    u = np.random.default_rng(0).uniform(2.0, 2.75, 400_000)
+    assert 0.25 / WANDER_STEP_REF == pytest.approx(0.3)
+    force = lev.wander(u, 0.006, np.random.default_rng(1))[1000:]
+    assert force.std() == pytest.approx(0.3 * 0.02, rel=0.03)
+    a = np.exp(-0.006 / 0.3)
+    for lag, tol in ((1, 0.002), (50, 0.03)):
+        assert np.corrcoef(force[:-lag], force[lag:])[0, 1] == pytest.approx(a ** lag, abs=tol)
+    # a random binary input steps by its whole range or not at all: no small step, no force; the same for a
+    # constant input, and for any input without wander_force (the default)
+    binary = random_binary(5000, 0.25, 1.5, 3.0, seed=3)
+    assert not lev.wander(binary, 0.006, np.random.default_rng(1)).any()
+    assert not lev.wander(np.full(5000, 3.0), 0.006, np.random.default_rng(1)).any()
+    assert LevitatorParams().wander_force == 0.0
+    assert not Levitator().wander(u[:5000], 0.006, np.random.default_rng(1)).any()
+
+
+def test_the_wander_is_process_noise_that_leaves_binary_records_and_the_exact_response_alone():
+    base = Levitator()
+    wandering = base.with_params(wander_force=0.05)
+    binary = random_binary(3000, 0.25, 1.5, 4.0, seed=2)
+    np.testing.assert_array_equal(wandering.simulate(binary, seed=3).y, base.simulate(binary, seed=3).y)
+    small = np.random.default_rng(4).uniform(1.75, 2.5, 3000)
+    assert not np.array_equal(wandering.simulate(small, seed=3).y, base.simulate(small, seed=3).y)
+    np.testing.assert_array_equal(wandering.simulate(small, seed=3).y, wandering.simulate(small, seed=3).y)
+    np.testing.assert_array_equal(wandering.simulate(small, noise=False).y, base.simulate(small, noise=False).y)
 
 
 def test_logging_quirk_zero_at_10():
