@@ -121,7 +121,7 @@ class LevitatorParams:
     quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
     force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
     # a slow force on the upper magnet that small command steps drive (process noise, Levitator.wander; 0: off)
-    wander_force: float = 0.0  # N, its std while every step is small and as large as white noise U(1.5, 4) A
+    wander_force: float = 0.0  # N, its std while every step is small, with WANDER_STEP_REF as mean |step|
     wander_tau: float = 1.0  # s (physical), its correlation time
     wander_power: float = 1.0  # exponent of the share of small steps that scales it
     switch_noise: float = 0.004773  # cm per A of command step: a reading disturbance at each switch

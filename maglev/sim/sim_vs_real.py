@@ -155,8 +155,8 @@ def stair_step(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE) ->
 @dataclass(frozen=True)
 class StairStep:
     """One stair step's numbers: the levels ``u0`` -> ``u1`` [A], its overshoot (fraction of the step) and
-    its band gain [cm/A]: the rms of |G| over a band (trapezoids on a 1 rad/s grid), G the DTFT of the step's impulse
-    response (the differenced response over the whole hold, per A of the step)."""
+    its band gain [cm/A]: the rms of |G| over a band (trapezoids on a 1 rad/s grid), G the DTFT of the
+    step's impulse response (the differenced response over the whole hold, per A of the step)."""
 
     u0: float
     u1: float
