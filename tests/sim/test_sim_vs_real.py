@@ -42,6 +42,10 @@ def test_complex_modes_lists_every_pair_slowest_first_and_least_damped_picks_sma
     assert np.isnan(sim_vs_real.least_damped([])[0])
     drift = (3.0, 0.001)  # a slow, barely damped pair is drift, not the resonance asked for
     assert sim_vs_real.least_damped([drift] + modes) == modes[0]
+    # nor is a pair at the Nyquist frequency of records decimated to 2 ms (a pole pair next to z = -1)
+    nyquist = sim_vs_real.complex_modes(np.array([-0.995 + 0.01j, -0.995 - 0.01j]), 0.002)
+    assert nyquist[0][0] == pytest.approx(np.pi / 0.002, rel=0.01) and nyquist[0][1] < 0.01
+    assert sim_vs_real.least_damped(nyquist + modes) == modes[0]
 
 
 @needs_real
