@@ -182,7 +182,7 @@ def stair_steps(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE,
     for step in held_steps(data, u_range=u_range):
         r = step.response(data.y)
         h = np.diff(r, prepend=0.0) * (step.y1 - step.y0) / (step.u1 - step.u0)
-        g = np.exp(-1j * np.outer(w, np.arange(h.size))) @ h
+        _, g = signal.freqz(h, worN=w)
         power = np.trapezoid(np.abs(g) ** 2, w) / (w[-1] - w[0])
         out.append(StairStep(u0=step.u0, u1=step.u1, overshoot=float(r.max() - 1.0), band_gain=float(np.sqrt(power))))
     return out
