@@ -79,8 +79,8 @@ from maglev.refdata import load_record
 
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
-           "output_std", "output_split", "coherent_gain", "hops", "record_frf", "stair_averages", "stair_step",
-           "StairStep", "stair_steps",
+           "output_std", "output_split", "coherent_gain", "hops", "record_frf", "record_halves", "halves_frf",
+           "stair_averages", "stair_step", "StairStep", "stair_steps",
            "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
@@ -241,6 +241,21 @@ def record_frf(data: IOData) -> bla_mod.FrequencyResponse:
     return bla_mod.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
 
 
+def record_halves(data: IOData) -> tuple[IOData, IOData]:
+    """The part of a record that :func:`record_frf` keeps, cut into two equal halves.  Each half comes
+    with the ``FRF_PREPROCESS.trim`` samples before it, which :func:`record_frf` drops again, so both
+    halves are estimated exactly as the whole record is."""
+    trim = FRF_PREPROCESS.trim
+    half = (len(data) - trim) // 2
+    return data.segment(0, trim + half), data.segment(half, trim + 2 * half)
+
+
+def halves_frf(data: IOData) -> tuple[bla_mod.FrequencyResponse, bla_mod.FrequencyResponse]:
+    """:func:`record_frf` of each of a record's :func:`record_halves`, first half first."""
+    first, second = record_halves(data)
+    return record_frf(first), record_frf(second)
+
+
 def output_split(data: IOData, bands: tuple[tuple[float, float], ...] = SPLIT_BANDS) -> list[tuple[float, float]]:
     """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.sim.bla.FrequencyResponse.band_rms`)
     of its :func:`record_frf`.  Why: the output std alone cannot tell an output the input drives
@@ -339,6 +354,7 @@ class FrfComparison:
     record: str
     real: bla_mod.FrequencyResponse
     sim: bla_mod.FrequencyResponse
+    halves: tuple[bla_mod.FrequencyResponse, bla_mod.FrequencyResponse] | None = None  # halves_frf of the real record
 
     @property
     def band(self) -> np.ndarray:
@@ -367,9 +383,22 @@ class FrfComparison:
         Why: the largest difference alone cannot tell a level offset (every band off the same way,
         as on binary_signal_2 and white_noise_4) from a misplaced mode (one band off, its
         neighbours the other way)."""
-        w, d = self.real.w[self.band], self.difference_db
-        inside = [(w >= lo) & (w < hi) for lo, hi in bands]
-        return [float(np.mean(d[k])) if k.any() else math.nan for k in inside]
+        return _band_means(self.real.w[self.band], self.difference_db, bands)
+
+    def drift_db(self, bands: tuple[tuple[float, float], ...] = FRF_BANDS) -> list[float]:
+        """Mean dB of the real record's second half over its first (:attr:`halves`) within each band, over
+        the bins where both halves' coherence is at least ``FRF_COHERENCE``; nan where no bin is (or
+        without halves).
+
+        Why: a stationary simulator cannot follow a record whose own response moves.  On the rig,
+        binary_signal_2's second half passes about 2 dB less than its first from 100 to 300 rad/s, while
+        binary_signal_3's halves agree to within a dB: that much of a gap to the whole record is the
+        record's own drift (docs/simulator.md, fourteenth look)."""
+        if self.halves is None:
+            return [math.nan] * len(bands)
+        first, second = self.halves
+        both = (first.coherence >= FRF_COHERENCE) & (second.coherence >= FRF_COHERENCE) & (first.w > 0)
+        return _band_means(first.w[both], 20 * np.log10(np.abs(second.G[both]) / np.abs(first.G[both])), bands)
 
     @property
     def real_error_db(self) -> float:
@@ -403,13 +432,19 @@ class FrfComparison:
                 f"{self.real_error_db:9.1f} {self.exact_max_db():12.1f}   within {FRF_TOLERANCE_DB:g} dB: {ok}")
 
 
+def _band_means(w: np.ndarray, d: np.ndarray, bands: tuple[tuple[float, float], ...]) -> list[float]:
+    """Mean of ``d`` over the frequencies ``w`` within each band (rad/s, lo <= w < hi); nan for an empty band."""
+    inside = [(w >= lo) & (w < hi) for lo, hi in bands]
+    return [float(np.mean(d[k])) if k.any() else math.nan for k in inside]
+
+
 def compare_frf(lev: Levitator, record: str, root: Path | None = None, real: IOData | None = None,
                 realisations: int = FRF_REALISATIONS) -> FrfComparison:
     """The real record's FRF and the simulator's BLA for its input class (``FRF_CLASSES``), same settings."""
     real = real if real is not None else load_record(record, root)
     spec = FRF_CLASSES[record]
     sim = bla_mod.bla(spec, lev, preprocess=FRF_PREPROCESS, realisations=realisations, segment_s=FRF_SEGMENT_S)
-    return FrfComparison(record=record, real=record_frf(real), sim=sim)
+    return FrfComparison(record=record, real=record_frf(real), sim=sim, halves=halves_frf(real))
 
 
 # ---------------------------------------------------------------------- the comparison
@@ -583,9 +618,15 @@ class Comparison:
                          "from the real estimate's own error (real ±dB, 1σ per bin) alone")
             lines += ["  mean dB, sim BLA over real, by band in rad/s (coherent bins only; '.': none):",
                       f"{'':>16} " + "".join(f"{f'{lo:.0f}-{hi:.0f}':>9}" for lo, hi in FRF_BANDS)]
-            lines += [f"{rec:>16} " + "".join(f"{m:+9.1f}" if math.isfinite(m) else f"{'.':>9}"
-                                              for m in c.band_means_db()) for rec, c in self.frf.items()]
+            lines += [f"{rec:>16} " + _db_row(c.band_means_db()) for rec, c in self.frf.items()]
+            lines += ["  mean dB, the real record's second half over its first, same bands (bins coherent in both "
+                      "halves): the record's own drift"]
+            lines += [f"{rec:>16} " + _db_row(c.drift_db()) for rec, c in self.frf.items()]
         return "\n".join(lines)
+
+
+def _db_row(values: list[float]) -> str:
+    return "".join(f"{m:+9.1f}" if math.isfinite(m) else f"{'.':>9}" for m in values)
 
 
 def _gains_text(gains: tuple[float, ...]) -> str:

@@ -394,6 +394,30 @@ def test_frf_comparison_scores_the_coherent_band_only():
     assert np.isnan(means[3])
 
 
+def test_drift_db_reads_a_gain_that_changes_between_a_records_halves():
+    # a resonant filter (100 rad/s at 1 ms) driven by uniform white noise, its output scaled by 0.8 from the
+    # second half's first kept sample on: every band reads 20 log10 0.8 = -1.94 dB; unscaled, 0
+    from scipy import signal
+    rng = np.random.default_rng(3)
+    u = rng.uniform(1.5, 4.0, 20000)
+    r, theta = 0.95, 0.1
+    y = signal.lfilter([0.0, 0.05], [1.0, -2 * r * np.cos(theta), r * r], u - u.mean())
+    y = y + 1e-6 * rng.standard_normal(u.size)
+    trim = sim_vs_real.FRF_PREPROCESS.trim
+    half = (u.size - trim) // 2
+    first, second = sim_vs_real.record_halves(IOData(u=u, y=y, Ts=1e-3))
+    assert len(first) == len(second) == trim + half
+    np.testing.assert_array_equal(second.y[trim:], y[trim + half:])
+    for scale in (1.0, 0.8):
+        data = IOData(u=u, y=np.concatenate([y[:trim + half], scale * y[trim + half:]]), Ts=1e-3)
+        frf = sim_vs_real.record_frf(data)
+        drift = sim_vs_real.FrfComparison(record="x", real=frf, sim=frf,
+                                          halves=sim_vs_real.halves_frf(data)).drift_db()
+        assert sum(np.isfinite(drift)) >= 4
+        np.testing.assert_allclose([d for d in drift if np.isfinite(d)], 20 * np.log10(scale), atol=0.1)
+    assert np.isnan(sim_vs_real.FrfComparison(record="x", real=frf, sim=frf).drift_db()).all()
+
+
 def test_exact_max_db_is_the_median_largest_error_of_n_coherent_bins():
     # each bin's estimate is G (1 + e), e complex Gaussian of rms σ; for small σ its dB error is 20/ln 10 Re e,
     # normal with std s = 20/ln 10 σ/√2, so the median largest |error| of n bins is s Φ⁻¹((1 + 0.5^(1/n)) / 2)
@@ -433,6 +457,22 @@ def test_the_rig_shows_two_lightly_damped_armax_modes_and_coherent_frequency_res
         # simulator would read that much of the 3 dB the check allows
         assert 1.8 < c.exact_max_db() < 2.6, rec
         assert np.median(c.sim.std[c.band] / np.abs(c.sim.G[c.band])) < 0.1  # the BLA's own error is small
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_rigs_wider_binary_alpha_quarter_record_loses_gain_between_its_halves(full_comparison):
+    # binary_signal_2's second half passes 1.9-2.5 dB less than its first from 100 to 300 rad/s (its output std
+    # falls from 1.18 to 0.86 cm); binary_signal_3 (the same range at α .5) and white_noise_4 stay within about
+    # a dB in every band (docs/simulator.md, fourteenth look)
+    drift = {rec: c.drift_db() for rec, c in full_comparison.frf.items()}
+    assert all(-2.8 <= d <= -1.6 for d in drift["binary_signal_2"][2:5])
+    assert all(abs(d) <= 1.0 for d in drift["binary_signal_3"][1:])
+    assert all(abs(d) <= 1.5 for d in drift["white_noise_4"][1:])
+    table = full_comparison.table().splitlines()
+    head = next(i for i, line in enumerate(table) if "second half over its first" in line)
+    for k, (rec, d) in enumerate(drift.items(), start=1):
+        assert table[head + k].split() == [rec] + [f"{m:+.1f}" if np.isfinite(m) else "." for m in d]
 
 
 @needs_real
