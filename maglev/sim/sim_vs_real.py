@@ -138,6 +138,9 @@ RANGE_CLASSES = {"uniform": ("white_noise_2", "white_noise_1", "white_noise_4"),
                  "bin α.5": ("binary_signal_4", "binary_signal_3"),
                  "bin α.25": ("binary_signal_1", "binary_signal_2")}
 GAIN_BAND = SPLIT_BANDS[1]  # rad/s: around the slow mode (≈ 75-90 rad/s), below the fast one
+# constant-input records that start from rest (0 A): how far a large step throws the upper magnet
+STARTUP_RECORDS = ("binary_signal_9", "binary_signal_10")  # 3 A, 4 A (the regulator saturated)
+STARTUP_SAMPLES = 1000  # the throw's peak is sought in the first ones
 STAIR_STEP_RANGE = (1.5, 4.0)  # A: the staircase's levels inside the working region (rise time, overshoot)
 
 Mode = tuple[float, float]  # (ωn [rad/s], ζ)
@@ -469,8 +472,8 @@ class Comparison:
     std_parts: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] | None = None
     levels: dict[str, tuple[float, float]] | None = None
     hops: dict[str, tuple[tuple[float, float], tuple[float, float]]] | None = None  # record -> (real, sim) hops()
-    startup_real: tuple[float, float] = (math.nan, math.nan)  # 0 -> 3 A (binary_signal_9): peak, final [cm]
-    startup_sim: tuple[float, float] = (math.nan, math.nan)
+    # record of STARTUP_RECORDS -> (command [A], (real, sim) (peak, final) [cm]) of its start from rest
+    startups: dict[str, tuple[float, tuple[tuple[float, float], tuple[float, float]]]] | None = None
     fourth_order: dict[str, tuple[list[Mode], list[Mode]]] | None = None  # record -> (real, sim) OE(4,4,5) modes
     armax: tuple[list[Mode], list[Mode]] | None = None  # (real, sim) ARMAX [4 4 4 1] modes of ARMAX_RECORD
     armax_noise_free: list[Mode] | None = None  # the same on the simulated record without sensor and process noise
@@ -499,6 +502,13 @@ class Comparison:
         """(real, sim) least-damped OE(4,4,5) mode of ``white_noise_4`` (the ≈ 215 rad/s one)."""
         real, sim = (self.fourth_order or {}).get(WHITE_RECORD, ([], []))
         return least_damped(real), least_damped(sim)
+
+    def _startup_lines(self) -> list[str]:
+        lines = []
+        for u, ((peak_r, final_r), (peak_s, final_s)) in (self.startups or {}).values():
+            lines += [f"  {f'start-up 0->{u:g} A peak [cm]':<27} {peak_r:9.2f} {peak_s:9.2f}",
+                      f"  {f'start-up 0->{u:g} A final [cm]':<27} {final_r:9.2f} {final_s:9.2f}"]
+        return lines
 
     def _steps_lines(self) -> list[str]:
         if not self.steps:
@@ -529,8 +539,7 @@ class Comparison:
                   "", "Lab analysis                       real       sim",
                   f"  rise time 10-90 % [samples] {self.rise_real:9.1f} {self.rise_sim:9.1f}",
                   f"  overshoot of stair steps    {self.overshoot_real:9.0%} {self.overshoot_sim:9.0%}",
-                  f"  start-up 0->3 A peak [cm]   {self.startup_real[0]:9.2f} {self.startup_sim[0]:9.2f}",
-                  f"  start-up 0->3 A final [cm]  {self.startup_real[1]:9.2f} {self.startup_sim[1]:9.2f}",
+                  *self._startup_lines(),
                   f"  alpha* (white_noise_4)      {self.alpha_real:9.2f} {self.alpha_sim:9.2f}",
                   *self._steps_lines(),
                   "", f"Dominant mode of OE{OE_ORDERS} (nb, nf, nk) models, trimmed {TRANSIENT_FRACTION:.0%}, "
@@ -657,7 +666,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     pairs = {}  # record -> (real, simulated), each simulated once
     extra = (ARMAX_RECORD,) if armax_check else ()
     for rec in dict.fromkeys(records + std_records + fourth_order_records + split_records + extra
-                             + (WHITE_RECORD, "binary_signal_9")):
+                             + (WHITE_RECORD,) + STARTUP_RECORDS):
         real = load_record(rec, root)
         pairs[rec] = (real, lev.simulate(real.u, Ts=real.Ts, seed=seed))
     modes = {rec: tuple(dominant_mode_of(d) for d in pairs[rec]) for rec in records}
@@ -676,14 +685,14 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         return choose_alpha(output_spectrum(d.trim(TRANSIENT_FRACTION).y).band).alpha_star
 
     def startup(d: IOData) -> tuple[float, float]:
-        return float(d.y[:1000].max()), output_level(d)
+        return float(d.y[:STARTUP_SAMPLES].max()), output_level(d)
 
     (const, sim_const), (wn, sim_wn) = pairs["binary_signal_9"], pairs[WHITE_RECORD]
     return Comparison(
         u_bar=u_bar, y_real=y_real, y_sim=y_sim,
         noise_real=_noise_numbers(const),
         noise_sim=_noise_numbers(sim_const),
-        startup_real=startup(const), startup_sim=startup(sim_const),
+        startups={rec: (float(pairs[rec][0].u[0]), tuple(startup(d) for d in pairs[rec])) for rec in STARTUP_RECORDS},
         rise_real=rise_r, rise_sim=rise_s,
         alpha_real=alpha(wn), alpha_sim=alpha(sim_wn), modes=modes,
         overshoot_real=over_r, overshoot_sim=over_s, stds=stds, std_parts=std_parts or None,

@@ -461,6 +461,23 @@ def test_the_rig_shows_two_lightly_damped_armax_modes_and_coherent_frequency_res
 
 @needs_real
 @pytest.mark.realdata
+def test_the_start_up_rows_give_how_far_each_constant_record_throws_the_magnet_from_rest(full_comparison):
+    # binary_signal_9 and _10 hold 3 A and 4 A from the first sample on, the magnets at rest on their seats: the
+    # rig's reading peaks at 11.42 and 15.56 cm within the first 1000 samples and settles at 8.77 and 9.34 cm
+    startups = full_comparison.startups
+    assert list(startups) == list(sim_vs_real.STARTUP_RECORDS)
+    (u3, (real3, sim3)), (u4, (real4, sim4)) = startups.values()
+    assert (u3, u4) == (3.0, 4.0)
+    assert real3 == pytest.approx((11.42, 8.77), abs=0.005) and real4 == pytest.approx((15.56, 9.34), abs=0.005)
+    table = full_comparison.table().splitlines()
+    for u, real, sim in ((u3, real3, sim3), (u4, real4, sim4)):
+        for k, what in enumerate(("peak", "final")):
+            line = next(line for line in table if line.strip().startswith(f"start-up 0->{u:g} A {what}"))
+            assert line.split()[-2:] == [f"{real[k]:.2f}", f"{sim[k]:.2f}"]
+
+
+@needs_real
+@pytest.mark.realdata
 def test_the_rigs_wider_binary_alpha_quarter_record_loses_gain_between_its_halves(full_comparison):
     # binary_signal_2's second half passes 1.9-2.5 dB less than its first from 100 to 300 rad/s (its output std
     # falls from 1.18 to 0.86 cm); binary_signal_3 (the same range at α .5) and white_noise_4 stay within about
