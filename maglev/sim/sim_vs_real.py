@@ -80,7 +80,7 @@ from maglev.refdata import load_record
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
            "output_std", "output_split", "coherent_gain", "hops", "record_frf", "record_halves", "halves_frf",
-           "stair_averages", "stair_step", "StairStep", "stair_steps",
+           "halves_db", "stair_averages", "stair_step", "StairStep", "stair_steps",
            "quantisation_step", "noise_psd"]
 
 STAIR_LEVELS = 21
@@ -259,6 +259,22 @@ def halves_frf(data: IOData) -> tuple[bla_mod.FrequencyResponse, bla_mod.Frequen
     return record_frf(first), record_frf(second)
 
 
+def halves_db(data: IOData, bands: tuple[tuple[float, float], ...] = FRF_BANDS) -> list[float]:
+    """Mean dB of a record's second half over its first (:func:`halves_frf`) within each band (rad/s,
+    lo <= w < hi), over the bins where both halves' coherence is at least ``FRF_COHERENCE``; nan where
+    no bin is.
+
+    Why: the halves of a record differ for two reasons.  Their inputs are two realisations, which a
+    nonlinear plant answers differently, and the rig itself may drift.  The simulator's replay of the
+    same input shows the first reason alone; what the rig shows beyond it is its own drift.  On
+    binary_signal_2 the rig's second half passes 1.9-2.5 dB less than its first from 150 to 300 rad/s,
+    the defaults' replay 0.6 dB less to 0.2 dB more (docs/simulator.md, fourteenth look).
+    """
+    first, second = halves_frf(data)
+    both = (first.coherence >= FRF_COHERENCE) & (second.coherence >= FRF_COHERENCE) & (first.w > 0)
+    return _band_means(first.w[both], 20 * np.log10(np.abs(second.G[both]) / np.abs(first.G[both])), bands)
+
+
 def output_split(data: IOData, bands: tuple[tuple[float, float], ...] = SPLIT_BANDS) -> list[tuple[float, float]]:
     """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.sim.bla.FrequencyResponse.band_rms`)
     of its :func:`record_frf`.  Why: the output std alone cannot tell an output the input drives
@@ -357,7 +373,6 @@ class FrfComparison:
     record: str
     real: bla_mod.FrequencyResponse
     sim: bla_mod.FrequencyResponse
-    halves: tuple[bla_mod.FrequencyResponse, bla_mod.FrequencyResponse] | None = None  # halves_frf of the real record
 
     @property
     def band(self) -> np.ndarray:
@@ -387,21 +402,6 @@ class FrfComparison:
         as on binary_signal_2 and white_noise_4) from a misplaced mode (one band off, its
         neighbours the other way)."""
         return _band_means(self.real.w[self.band], self.difference_db, bands)
-
-    def drift_db(self, bands: tuple[tuple[float, float], ...] = FRF_BANDS) -> list[float]:
-        """Mean dB of the real record's second half over its first (:attr:`halves`) within each band, over
-        the bins where both halves' coherence is at least ``FRF_COHERENCE``; nan where no bin is (or
-        without halves).
-
-        Why: a stationary simulator cannot follow a record whose own response moves.  On the rig,
-        binary_signal_2's second half passes about 2 dB less than its first from 100 to 300 rad/s, while
-        binary_signal_3's halves agree to within a dB: that much of a gap to the whole record is the
-        record's own drift (docs/simulator.md, fourteenth look)."""
-        if self.halves is None:
-            return [math.nan] * len(bands)
-        first, second = self.halves
-        both = (first.coherence >= FRF_COHERENCE) & (second.coherence >= FRF_COHERENCE) & (first.w > 0)
-        return _band_means(first.w[both], 20 * np.log10(np.abs(second.G[both]) / np.abs(first.G[both])), bands)
 
     @property
     def real_error_db(self) -> float:
@@ -447,7 +447,7 @@ def compare_frf(lev: Levitator, record: str, root: Path | None = None, real: IOD
     real = real if real is not None else load_record(record, root)
     spec = FRF_CLASSES[record]
     sim = bla_mod.bla(spec, lev, preprocess=FRF_PREPROCESS, realisations=realisations, segment_s=FRF_SEGMENT_S)
-    return FrfComparison(record=record, real=record_frf(real), sim=sim, halves=halves_frf(real))
+    return FrfComparison(record=record, real=record_frf(real), sim=sim)
 
 
 # ---------------------------------------------------------------------- the comparison
@@ -478,6 +478,7 @@ class Comparison:
     armax: tuple[list[Mode], list[Mode]] | None = None  # (real, sim) ARMAX [4 4 4 1] modes of ARMAX_RECORD
     armax_noise_free: list[Mode] | None = None  # the same on the simulated record without sensor and process noise
     frf: dict[str, FrfComparison] | None = None  # record -> real FRF vs simulated BLA
+    halves: dict[str, tuple[list[float], list[float]]] | None = None  # frf record -> (real, sim replay) halves_db
     # record -> (real, sim) (coherent, incoherent) output rms [cm] per band of SPLIT_BANDS
     split: dict[str, tuple[list[tuple[float, float]], list[tuple[float, float]]]] | None = None
     gains: dict[str, tuple[float, float, float]] | None = None  # record -> (input range [A], real, sim) coherent_gain
@@ -628,9 +629,11 @@ class Comparison:
             lines += ["  mean dB, sim BLA over real, by band in rad/s (coherent bins only; '.': none):",
                       f"{'':>16} " + "".join(f"{f'{lo:.0f}-{hi:.0f}':>9}" for lo, hi in FRF_BANDS)]
             lines += [f"{rec:>16} " + _db_row(c.band_means_db()) for rec, c in self.frf.items()]
-            lines += ["  mean dB, the real record's second half over its first, same bands (bins coherent in both "
-                      "halves): the record's own drift"]
-            lines += [f"{rec:>16} " + _db_row(c.drift_db()) for rec, c in self.frf.items()]
+            if self.halves:
+                lines.append("  mean dB, a record's second half over its first, same bands (bins coherent in both "
+                             "halves): the rig's record, then the simulator's replay of its input")
+                for rec, (real, sim) in self.halves.items():
+                    lines += [f"{rec:>16} " + _db_row(real) + "  real", f"{'':>16} " + _db_row(sim) + "  sim"]
         return "\n".join(lines)
 
 
@@ -665,7 +668,7 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
     _, y_sim = stair_averages(sim_stair)
     pairs = {}  # record -> (real, simulated), each simulated once
     extra = (ARMAX_RECORD,) if armax_check else ()
-    for rec in dict.fromkeys(records + std_records + fourth_order_records + split_records + extra
+    for rec in dict.fromkeys(records + std_records + fourth_order_records + split_records + extra + frf_records
                              + (WHITE_RECORD,) + STARTUP_RECORDS):
         real = load_record(rec, root)
         pairs[rec] = (real, lev.simulate(real.u, Ts=real.Ts, seed=seed))
@@ -700,7 +703,8 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
         armax=tuple(armax_modes_of(d) for d in pairs[ARMAX_RECORD]) if armax_check else None,
         armax_noise_free=armax_modes_of(lev.simulate(pairs[ARMAX_RECORD][0].u, Ts=pairs[ARMAX_RECORD][0].Ts,
                                                      seed=seed, noise=False)) if armax_check else None,
-        frf={rec: compare_frf(lev, rec, root, pairs[rec][0] if rec in pairs else None) for rec in frf_records} or None,
+        frf={rec: compare_frf(lev, rec, root, pairs[rec][0]) for rec in frf_records} or None,
+        halves={rec: tuple(halves_db(d) for d in pairs[rec]) for rec in frf_records} or None,
         split=split or None, gains=gains or None, steps=(stair_steps(stair), stair_steps(sim_stair)),
     )
 

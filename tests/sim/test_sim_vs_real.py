@@ -394,7 +394,7 @@ def test_frf_comparison_scores_the_coherent_band_only():
     assert np.isnan(means[3])
 
 
-def test_drift_db_reads_a_gain_that_changes_between_a_records_halves():
+def test_halves_db_reads_a_gain_that_changes_between_a_records_halves():
     # a resonant filter (100 rad/s at 1 ms) driven by uniform white noise, its output scaled by 0.8 from the
     # second half's first kept sample on: every band reads 20 log10 0.8 = -1.94 dB; unscaled, 0
     from scipy import signal
@@ -409,13 +409,10 @@ def test_drift_db_reads_a_gain_that_changes_between_a_records_halves():
     assert len(first) == len(second) == trim + half
     np.testing.assert_array_equal(second.y[trim:], y[trim + half:])
     for scale in (1.0, 0.8):
-        data = IOData(u=u, y=np.concatenate([y[:trim + half], scale * y[trim + half:]]), Ts=1e-3)
-        frf = sim_vs_real.record_frf(data)
-        drift = sim_vs_real.FrfComparison(record="x", real=frf, sim=frf,
-                                          halves=sim_vs_real.halves_frf(data)).drift_db()
+        drift = sim_vs_real.halves_db(IOData(u=u, y=np.concatenate([y[:trim + half], scale * y[trim + half:]]),
+                                             Ts=1e-3))
         assert sum(np.isfinite(drift)) >= 4
         np.testing.assert_allclose([d for d in drift if np.isfinite(d)], 20 * np.log10(scale), atol=0.1)
-    assert np.isnan(sim_vs_real.FrfComparison(record="x", real=frf, sim=frf).drift_db()).all()
 
 
 def test_exact_max_db_is_the_median_largest_error_of_n_coherent_bins():
@@ -482,14 +479,18 @@ def test_the_rigs_wider_binary_alpha_quarter_record_loses_gain_between_its_halve
     # binary_signal_2's second half passes 1.9-2.5 dB less than its first from 100 to 300 rad/s (its output std
     # falls from 1.18 to 0.86 cm); binary_signal_3 (the same range at α .5) and white_noise_4 stay within about
     # a dB in every band (docs/simulator.md, fourteenth look)
-    drift = {rec: c.drift_db() for rec, c in full_comparison.frf.items()}
-    assert all(-2.8 <= d <= -1.6 for d in drift["binary_signal_2"][2:5])
-    assert all(abs(d) <= 1.0 for d in drift["binary_signal_3"][1:])
-    assert all(abs(d) <= 1.5 for d in drift["white_noise_4"][1:])
+    assert list(full_comparison.halves) == list(full_comparison.frf)
+    real = {rec: r for rec, (r, _) in full_comparison.halves.items()}
+    assert real["binary_signal_2"] == sim_vs_real.halves_db(load_record("binary_signal_2", REAL))
+    assert all(-2.8 <= d <= -1.6 for d in real["binary_signal_2"][2:5])
+    assert all(abs(d) <= 1.0 for d in real["binary_signal_3"][1:])
+    assert all(abs(d) <= 1.5 for d in real["white_noise_4"][1:])
     table = full_comparison.table().splitlines()
     head = next(i for i, line in enumerate(table) if "second half over its first" in line)
-    for k, (rec, d) in enumerate(drift.items(), start=1):
-        assert table[head + k].split() == [rec] + [f"{m:+.1f}" if np.isfinite(m) else "." for m in d]
+    for k, (rec, pair) in enumerate(full_comparison.halves.items()):
+        for j, (label, d) in enumerate(zip(("real", "sim"), pair)):
+            cells = [f"{m:+.1f}" if np.isfinite(m) else "." for m in d]
+            assert table[head + 1 + 2 * k + j].split() == ([rec] if j == 0 else []) + cells + [label]
 
 
 @needs_real
