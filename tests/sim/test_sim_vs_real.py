@@ -555,7 +555,7 @@ def test_binary_to_white_noise_std_ratio_matches_the_rig(full_comparison):
 @needs_real
 @pytest.mark.realdata
 @pytest.mark.xfail(strict=True, reason="BLA 5.1 dB off the rig's FRF on binary_signal_2 and 5.4 dB on "
-                   "white_noise_4 (docs/simulator.md, seventh to thirteenth looks; an exact simulator would read 2.2 dB)")
+                   "white_noise_4 (docs/simulator.md, seventh to fourteenth looks; an exact simulator would read 2.2 dB)")
 def test_bla_within_3_db_of_the_rigs_frequency_response(full_comparison):
     for rec in ("binary_signal_2", "white_noise_4"):
         assert full_comparison.frf[rec].max_db <= 3.0, rec
