@@ -52,7 +52,7 @@ from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA
                                     stair_averages, stair_step, two_modes)
 
 __all__ = ["fit_static", "fit_noise", "fit_friction", "with_dynamics", "friction_targets", "friction_errors",
-           "friction_cost", "main"]
+           "friction_cost", "scored_cost", "main"]
 
 # parameters moved by fit_friction (all positive, fitted in log space): the bushings' damping law
 # (docs/simulator.md, fifth attempt) and the physical time per sample
@@ -240,7 +240,11 @@ def friction_cost(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> float:
     all checks instead of trading one far outside its tolerance for many well inside),
     plus the penalties.
     """
-    errors, penalty = friction_errors(lev, tg, seed)
+    return scored_cost(*friction_errors(lev, tg, seed))
+
+
+def scored_cost(errors: dict[str, float], penalty: float) -> float:
+    """:func:`friction_cost` from :func:`friction_errors`' output (errors already at hand)."""
     return float(np.sum(np.array(list(errors.values())) ** _NORM) ** (1 / _NORM)) + penalty
 
 

@@ -55,11 +55,11 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
     # the damping in motion alone (no quiet-input, no aged-contact part) fails the checks
     in_motion = fitted.with_params(gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0,
                                    gamma_aged_upper=0.0)
-    errors_motion, _ = calibrate.friction_errors(in_motion, targets)
+    errors_motion, penalty_motion = calibrate.friction_errors(in_motion, targets)
     assert max(errors_motion.get(k, math.inf) for k in legacy) > 1.0
     # and the defaults score better than the previous defaults (Coulomb + Stribeck friction, d = 4.2 cm)
-    cost = calibrate.friction_cost(fitted, targets)
-    assert cost < calibrate.friction_cost(in_motion, targets)
+    cost = calibrate.scored_cost(errors, penalty)
+    assert cost < calibrate.scored_cost(errors_motion, penalty_motion)
     assert cost < 0.7 * calibrate.friction_cost(rig("dry_friction"), targets)
     # issue 15's checks but the frequency responses: the defaults meet them all (2026-11-26, docs/simulator.md, ninth
     # look), the two plants before them miss binary_signal_4's std. (Their 8-norm costs are not ordered so: the cost
