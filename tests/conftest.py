@@ -20,20 +20,19 @@ TESTS = Path(__file__).resolve().parent
 # The README's command runs the suite in two pytest-xdist workers, whole files at a time (--dist loadfile),
 # handing a worker its next file once it has at most 2 tests left.  xdist's default order (files with the
 # most tests first) leaves the end-to-end files, a few tests of 5–35 s each, for last, and one worker
-# idle while the other finishes them.  Longest first instead (top-40 durations summed per file, idle 2-core
-# machine, cold BLA cache as on CI, 2026-11-23, in s):
+# idle while the other finishes them.  Longest first instead (durations summed per file, a full run on a 2-core
+# machine, 2026-11-27, in s):
 LONGEST_FIRST = (
-    "study/test_concurrency.py",  # 56: two launches at once, SIGTERM, kill -9, submitit against a server
-    "study/test_report.py",       # 37: the default sweep, its BLAs estimated, ranked and reported
-    "study/test_parallel.py",     # 32: joblib workers, a tracking server
-    "study/test_sweep.py",        # 19: a sweep, maglev ui
-    "test_bench.py",              # 12
-    "sim/test_calibrate.py",      # 9
-    "estimation/test_nested_orders.py",  # 6
-    "study/test_faults.py",       # 6
-    "study/test_cli.py",          # 6
-    "study/test_config.py",       # 5
-    "estimation/test_estimate_real.py",  # 4
+    "study/test_concurrency.py",  # 75: two launches at once (twice), SIGTERM, kill -9
+    "study/test_report.py",       # 69: the default sweep, its BLAs estimated, ranked and reported
+    "study/test_sweep.py",        # 42: a sweep, maglev ui
+    "study/test_server.py",       # 34: a tracking server, submitit's job processes
+    "sim/test_calibrate.py",      # 30
+    "study/test_config.py",       # 25
+    "estimation/test_nested_orders.py",  # 19
+    "estimation/test_estimate_real.py",  # 18
+    "study/test_parallel.py",     # 17: joblib's worker processes
+    "study/test_faults.py",       # 16
 )
 
 
