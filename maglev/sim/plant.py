@@ -612,56 +612,69 @@ class _Damping:
     """
 
     def __init__(self, p: LevitatorParams, hs: float, dt: float, cur0: float | np.ndarray) -> None:
-        self.p, self.hs = p, hs
-        self.quiet = p.gamma_quiet_lower > 0 or p.gamma_quiet_upper > 0
-        self.aged = p.gamma_aged_lower > 0 or p.gamma_aged_upper > 0
-        self.fast = (_rate(hs, p.activity_fast_lower), _rate(hs, p.activity_fast_upper))
-        self.slow = (_rate(hs, p.activity_slow_lower), _rate(hs, p.activity_slow_upper))
-        self.attack, self.release = _rate(hs, p.activity_attack), _rate(hs, p.activity_release)
-        self.jitter_rate = _rate(dt, p.jitter_tau)
-        self.inv_renewal = 1.0 / p.slip_renewal
-        self.filt = [cur0, cur0, cur0, cur0]  # fast and slow low passes of the current, lower then upper
-        self.env_l = self.env_u = 0.0 * cur0
-        self.jitter, self.cur = 0.0 * cur0, cur0
-        self.age_l = self.age_u = _REST_AGE + 0.0 * cur0
-        self._gammas()
+        # The state lives in the closures below, not in attributes: the integrator calls them once per
+        # substep, and with attribute lookups there a record took twice as long (the same numbers).
+        quiet = p.gamma_quiet_lower > 0 or p.gamma_quiet_upper > 0
+        aged = p.gamma_aged_lower > 0 or p.gamma_aged_upper > 0
+        fast_l, fast_u = _rate(hs, p.activity_fast_lower), _rate(hs, p.activity_fast_upper)
+        slow_l, slow_u = _rate(hs, p.activity_slow_lower), _rate(hs, p.activity_slow_upper)
+        up, down = _rate(hs, p.activity_attack), _rate(hs, p.activity_release)
+        jitter_rate = _rate(dt, p.jitter_tau)
+        inv_renewal = 1.0 / p.slip_renewal
+        gamma_l, gamma_u = p.gamma_lower, p.gamma_upper
+        quiet_l, quiet_u = p.gamma_quiet_lower, p.gamma_quiet_upper
+        power_l, power_u = p.quiet_power_lower, p.quiet_power_upper
+        level_l, level_u, weight = p.quiet_level_lower, p.quiet_level_upper, p.jitter_weight
+        aged_l, aged_u, half = p.gamma_aged_lower, p.gamma_aged_upper, p.age_half
+        f0 = f1 = f2 = f3 = cur0  # fast and slow low passes of the current, lower then upper
+        env_l = env_u = 0.0 * cur0
+        jitter, cur = 0.0 * cur0, cur0
+        age_l = age_u = _REST_AGE + 0.0 * cur0
 
-    def _gammas(self) -> None:
-        p = self.p
-        gl, gu = p.gamma_lower, p.gamma_upper
-        if self.quiet:
-            gl = gl + p.gamma_quiet_lower / (1.0 + self.env_l ** p.quiet_power_lower)
-            gu = gu + p.gamma_quiet_upper / (1.0 + self.env_u ** p.quiet_power_upper)
-        if self.aged:
-            gl = gl + p.gamma_aged_lower * self.age_l / (self.age_l + p.age_half)
-            gu = gu + p.gamma_aged_upper * self.age_u / (self.age_u + p.age_half)
-        self.lower, self.upper = gl / _CM, gu / _CM
+        def gammas() -> None:
+            gl, gu = gamma_l, gamma_u
+            if quiet:
+                gl = gl + quiet_l / (1.0 + env_l ** power_l)
+                gu = gu + quiet_u / (1.0 + env_u ** power_u)
+            if aged:
+                gl = gl + aged_l * age_l / (age_l + half)
+                gu = gu + aged_u * age_u / (age_u + half)
+            self.lower, self.upper = gl / _CM, gu / _CM
 
-    def sample(self, cur: float | np.ndarray) -> None:
-        """A new logged sample with coil current ``cur`` begins: update the jitter."""
-        self.jitter = self.jitter + self.jitter_rate * (abs(cur - self.cur) - self.jitter)
-        self.cur = cur
+        def sample(new: float | np.ndarray) -> None:
+            """A new logged sample with coil current ``new`` begins: update the jitter."""
+            nonlocal jitter, cur
+            jitter = jitter + jitter_rate * (abs(new - cur) - jitter)
+            cur = new
 
-    def substep(self, vz: float | np.ndarray, vh: float | np.ndarray) -> None:
-        """After the velocity update: age the contacts, follow the activity, refresh the damping."""
-        p, hs = self.p, self.hs
-        if self.aged:
-            self.age_l = (self.age_l + hs) / (1.0 + hs * abs(vz) * self.inv_renewal)
-            self.age_u = (self.age_u + hs) / (1.0 + hs * abs(vh) * self.inv_renewal)
-        if self.quiet:
-            c, f = self.cur, self.filt
-            f[0] = f[0] + self.fast[0] * (c - f[0])
-            f[1] = f[1] + self.slow[0] * (c - f[1])
-            f[2] = f[2] + self.fast[1] * (c - f[2])
-            f[3] = f[3] + self.slow[1] * (c - f[3])
-            spread = p.jitter_weight * self.jitter
-            act_l = abs(f[0] - f[1]) / (p.quiet_level_lower + spread)
-            act_u = abs(f[2] - f[3]) / (p.quiet_level_upper + spread)
-            up, down = self.attack, self.release
-            self.env_l = self.env_l + (down + (up - down) * (act_l > self.env_l)) * (act_l - self.env_l)
-            self.env_u = self.env_u + (down + (up - down) * (act_u > self.env_u)) * (act_u - self.env_u)
-        if self.quiet or self.aged:
-            self._gammas()
+        def substep(vz: float | np.ndarray, vh: float | np.ndarray) -> None:
+            """After the velocity update: age the contacts, follow the activity, refresh the damping."""
+            nonlocal age_l, age_u, f0, f1, f2, f3, env_l, env_u
+            if aged:
+                age_l = (age_l + hs) / (1.0 + hs * abs(vz) * inv_renewal)
+                age_u = (age_u + hs) / (1.0 + hs * abs(vh) * inv_renewal)
+            if quiet:
+                c = cur
+                f0 = f0 + fast_l * (c - f0)
+                f1 = f1 + slow_l * (c - f1)
+                f2 = f2 + fast_u * (c - f2)
+                f3 = f3 + slow_u * (c - f3)
+                spread = weight * jitter
+                act_l = abs(f0 - f1) / (level_l + spread)
+                act_u = abs(f2 - f3) / (level_u + spread)
+                env_l = env_l + (down + (up - down) * (act_l > env_l)) * (act_l - env_l)
+                env_u = env_u + (down + (up - down) * (act_u > env_u)) * (act_u - env_u)
+            if quiet or aged:
+                gammas()
+
+        def ages() -> tuple[float | np.ndarray, float | np.ndarray]:
+            """The contact ages θ of the lower and the upper bushing now [s of physics]."""
+            return age_l, age_u
+
+        self.lower: float | np.ndarray  # the dampings of the lower and the upper magnet now, set by gammas()
+        self.upper: float | np.ndarray
+        gammas()
+        self.sample, self.substep, self.ages = sample, substep, ages
 
 
 def _velocity_step(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool):
@@ -722,6 +735,7 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     step_u = _velocity_step(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, smooth)
     cur_list = cur.tolist()
     damping = _Damping(p, hs, dt, cur_list[0])
+    sample, substep = damping.sample, damping.substep
     z, h, vz, vh = z0, h0, 0.0, 0.0
     zs = [0.0] * len(cur)
     hs_out = [0.0] * len(cur)
@@ -729,14 +743,14 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
         zs[i] = z  # the reading is taken at the start of the sample, then the new current acts
         hs_out[i] = h
         ci = i_c * ia
-        damping.sample(i_c)
+        sample(i_c)
         for _ in range(substeps):
             fm = c / (h - z + d) ** 4
             az = ci / (z + b) ** n - fm - w  # N, external force on the lower magnet
             ah = fm - kap * ci / (h + b) ** n - w + f_n  # N, on the upper magnet
             vz = step_l(vz, az, damping.lower)
             vh = step_u(vh, ah, damping.upper)
-            damping.substep(vz, vh)
+            substep(vz, vh)
             z += hs * vz
             h += hs * vh
             if z < 0.0:
