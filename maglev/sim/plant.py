@@ -775,9 +775,9 @@ def _velocity_step_batch(hk: float, fc: float, fs: float, ivs2: float, ivc: floa
 
     def stick_slip(v: np.ndarray, a: np.ndarray, gamma: np.ndarray) -> np.ndarray:
         damp = 1.0 + hk * gamma
-        band = hk * (fc + fs * np.exp(-v * v * ivs2)) / damp
+        band = hk * (fc + fs * np.exp(-v * v * ivs2)) / damp if fs else hk * fc / damp  # the same numbers
         v = (v + hk * a) / damp
-        return np.where(v > band, v - band, np.where(v < -band, v + band, 0.0))
+        return v - np.clip(v, -band, band)  # v - band above the band, v + band below it, 0.0 within
     return stick_slip
 
 
