@@ -60,9 +60,10 @@ VERSION = 2  # bump when the estimator changes: old disk-cache entries are then 
 # below is off by 0.0097 ‖G_BLA‖²_Φu RMS over the default sweep's 8 models of that class (2 s, M = 16)
 # where their true excess errors spread over 0.022; 8 s and M = 256: 0.0017 (rank correlation 0.45 → 0.98).
 SEGMENT_S = 8.0  # s (as labelled) per Welch segment, 0.125 Hz apart; shorter ones leak the slow friction dynamics
-REALISATIONS = 256  # default M: ≈ 5 s for a 24 s class on the idle 2-core machine (cached), |SE|/|G| ≈ 1.5-3 %
+REALISATIONS = 256  # default M: ≈ 15 s for a 24 s class (2-core machine, 2026-11-27; cached), |SE|/|G| ≈ 1.5-3 %
 # from this many realisations a Levitator's records are integrated together (Levitator.simulate_batch):
-# 256 records of 24 s take 5 s instead of 21 s; 16 take 2.9 s instead of 1.3 s (numpy's cost per operation)
+# 256 records of 24 s take 13 s instead of 72 s; 16 take 10 s instead of 4.5 s (numpy's cost per operation;
+# the same day and machine)
 BATCH_FROM = 64
 RECORD_SEGMENT_S = 2.0  # s per segment of one record's estimate (frequency_response): ≥ 10 averages on 22 s
 SEED0 = 2 ** 20  # realisation m uses seed SEED0 + m: far from the seeds datasets use

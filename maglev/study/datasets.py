@@ -103,10 +103,11 @@ def prepare_blas(configs: list[dict]):
     """Estimate, in a background process, the BLAs that the runs of these job configs will need and the
     disk cache lacks, in the jobs' order; returns the process (None when there is nothing to do).
 
-    A 24 s class's BLA takes ≈ 5 s, which the first run of each dataset would otherwise pay on the
-    sweep's critical path; started before the store and the lab steps, the background has the first
-    one ready by then and the others while the runs go on (a run that needs one still in the making
-    waits for it: :func:`maglev.sim.bla.bla` locks each cache entry while estimating it).
+    A 24 s class's BLA takes ≈ 15 s (2-core machine, 2026-11-27), which the first run of each dataset
+    would otherwise pay on the sweep's critical path; started before the store and the lab steps, the
+    background has the first one well on its way by then and the others while the runs go on (a run
+    that needs one still in the making waits for it: :func:`maglev.sim.bla.bla` locks each cache entry
+    while estimating it).
     """
     import json
     import multiprocessing
