@@ -232,3 +232,29 @@ def test_band_rms_rejects_a_band_that_is_not_one(lo, hi):
                                     Ts=1e-3, averages=1)
     with pytest.raises(ValueError, match=f"lo={lo!r}, hi={hi!r}|{lo!r} <= w < {hi!r}"):
         frf.band_rms(lo, hi)
+
+
+def test_blas_of_several_classes_are_the_estimates_bla_makes_one_class_at_a_time(tmp_path, monkeypatch):
+    """One batch for the classes of one length (binary α .25 and uniform 1.75-2.5 A, 0.8 s), the class of
+    another length alone: every array and number equal to bla's own, class by class, and on disk."""
+    specs = [replace(BINARY, duration_s=0.8), replace(NARROW, duration_s=0.8), replace(NARROW, duration_s=1.0)]
+    settings = dict(preprocess=Preprocess(trim=200), realisations=bla_mod.BATCH_FROM, segment_s=0.25)
+    lev = Levitator()
+    batches = []
+    simulate_batch = Levitator.simulate_batch
+    monkeypatch.setattr(Levitator, "simulate_batch", lambda self, U, **kw: batches.append(len(U)) or
+                        simulate_batch(self, U, **kw))
+    monkeypatch.setenv("MAGLEV_CACHE", str(tmp_path / "together"))
+    monkeypatch.setattr(bla_mod, "_MEMORY", {})
+    together = bla_mod.blas(specs, lev, **settings)
+    assert batches == [2 * bla_mod.BATCH_FROM, bla_mod.BATCH_FROM]  # the two 0.8 s classes at once, then the 1 s one
+    assert all(bla_mod.is_cached(spec, lev, **settings) for spec in specs)
+    monkeypatch.setenv("MAGLEV_CACHE", str(tmp_path / "apart"))
+    monkeypatch.setattr(bla_mod, "_MEMORY", {})
+    apart = [bla(spec, lev, **settings) for spec in specs]
+    for a, b in zip(together, apart):
+        assert a.spec == b.spec and a.averages == b.averages
+        for name in ("w", "G", "std", "coherence", "Suu", "Syy"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert (a.distortion_variance, a.output_variance) == (b.distortion_variance, b.output_variance)
+    assert not np.array_equal(together[0].G, together[1].G)  # two classes, two answers
