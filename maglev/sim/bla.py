@@ -240,19 +240,17 @@ def frequency_response(data: IOData, segment_s: float = RECORD_SEGMENT_S) -> Fre
                              averages=k)
 
 
-Outputs = Callable[[np.ndarray], "np.ndarray | list[np.ndarray]"]  # realisations' inputs (rows) -> their outputs
+def _one_by_one(system: System, inputs: np.ndarray) -> list[np.ndarray]:
+    """``system``'s output to each realisation (row of ``inputs``), realisation m with seed ``SEED0 + m``."""
+    return [system(u, SEED0 + m) for m, u in enumerate(inputs)]
 
 
-def _one_by_one(system: System) -> Outputs:
-    return lambda U: [system(u, SEED0 + m) for m, u in enumerate(U)]
-
-
-def _outputs_of(plant: Levitator, Ts: float, realisations: int) -> Outputs:
+def _outputs_of(plant: Levitator, Ts: float, inputs: np.ndarray) -> np.ndarray | list[np.ndarray]:
     """Noise-free (the seed only picks the input): all records integrated together from
     :data:`BATCH_FROM` realisations on, one by one below."""
-    if realisations >= BATCH_FROM:
-        return lambda U: plant.simulate_batch(U, Ts=Ts)
-    return _one_by_one(lambda u, seed: plant.simulate(u, Ts=Ts, seed=seed, noise=False).y)
+    if len(inputs) >= BATCH_FROM:
+        return plant.simulate_batch(inputs, Ts=Ts)
+    return _one_by_one(lambda u, seed: plant.simulate(u, Ts=Ts, seed=seed, noise=False).y, inputs)
 
 
 def _inputs(spec: ExperimentSpec, realisations: int) -> np.ndarray:
@@ -260,13 +258,12 @@ def _inputs(spec: ExperimentSpec, realisations: int) -> np.ndarray:
     return np.array([input_signal(replace(spec, seed=SEED0 + m)) for m in range(realisations)])
 
 
-def _estimate(spec: ExperimentSpec, outputs: Outputs, preprocess: Preprocess, realisations: int,
-              segment_s: float) -> BLA:
-    if realisations < 2:
-        raise ValueError(f"realisations must be >= 2 (the standard error needs a spread), got {realisations!r}")
-    inputs = _inputs(spec, realisations)
+def _estimate(spec: ExperimentSpec, inputs: np.ndarray, outputs: np.ndarray | list[np.ndarray],
+              preprocess: Preprocess, segment_s: float) -> BLA:
+    """The BLA from the class's realisations (:func:`_inputs`) and the plant's outputs to them."""
+    realisations = len(inputs)
     records = [preprocess.apply(IOData(u=u, y=np.asarray(y, dtype=float), Ts=spec.Ts))
-               for u, y in zip(inputs, outputs(inputs))]
+               for u, y in zip(inputs, outputs)]
     # at most half a record: var(y_s) is measured on what the BLA filter's reach (half a segment at each end) leaves
     half_record = records[0].N // 2
     nperseg = min(_segment(records[0].Ts, segment_s), half_record - half_record % 2)
@@ -368,10 +365,13 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
     if spec.kind not in ("uniform", "binary"):
         raise ValueError(f"the BLA needs a stationary random input class (kind 'uniform' or 'binary'), "
                          f"got kind={spec.kind!r}")
+    if realisations < 2:
+        raise ValueError(f"realisations must be >= 2 (the standard error needs a spread), got {realisations!r}")
     preprocess = preprocess or Preprocess()
     plant = rig() if plant is None else plant
     if not isinstance(plant, Levitator):
-        return _estimate(spec, _one_by_one(plant), preprocess, realisations, segment_s)
+        inputs = _inputs(spec, realisations)
+        return _estimate(spec, inputs, _one_by_one(plant, inputs), preprocess, segment_s)
     key = cache_key(spec, plant, preprocess, realisations, segment_s)
     if cache is not False and key in _MEMORY:
         return replace(_MEMORY[key], spec=spec)
@@ -381,8 +381,8 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
         with _one_estimator(path):
             est = _load(path) if path is not None and path.is_file() else None  # made while this one waited
             if est is None:
-                est = _estimate(spec, _outputs_of(plant, spec.Ts, realisations), preprocess, realisations,
-                                segment_s)
+                inputs = _inputs(spec, realisations)
+                est = _estimate(spec, inputs, _outputs_of(plant, spec.Ts, inputs), preprocess, segment_s)
                 if path is not None:
                     try:
                         _save(path, est)
@@ -405,25 +405,25 @@ def blas(specs: list[ExperimentSpec], plant: Levitator | None = None, *, preproc
     """
     preprocess = preprocess or Preprocess()
     plant = rig() if plant is None else plant
-    groups: dict[tuple[int, float], list[tuple[ExperimentSpec, Path, np.ndarray]]] = {}
+    groups: dict[tuple[int, float], list[tuple[ExperimentSpec, str, Path, np.ndarray]]] = {}
     for spec in specs:
-        path = cache_dir() / f"{cache_key(spec, plant, preprocess, realisations, segment_s)}.npz"
+        key = cache_key(spec, plant, preprocess, realisations, segment_s)
+        path = cache_dir() / f"{key}.npz"
         if not path.is_file() and realisations >= BATCH_FROM:
             inputs = _inputs(spec, realisations)
-            groups.setdefault((inputs.shape[1], spec.Ts), []).append((spec, path, inputs))
+            groups.setdefault((inputs.shape[1], spec.Ts), []).append((spec, key, path, inputs))
     for (_, Ts), members in groups.items():
         if len(members) < 2:  # bla() below estimates it alone
             continue
         with contextlib.ExitStack() as held:
-            for path in sorted({path for _, path, _ in members}):
+            for path in sorted({path for _, _, path, _ in members}):
                 held.enter_context(_one_estimator(path))
-            todo = [m for m in members if not m[1].is_file()]  # the others were made while this one waited
+            todo = [m for m in members if not m[2].is_file()]  # the others were made while this one waited
             outputs = plant.simulate_batch(np.vstack([inputs for *_, inputs in todo]), Ts=Ts) if todo else None
-            for k, (spec, path, _) in enumerate(todo):
-                rows = outputs[k * realisations:(k + 1) * realisations]
-                # its rows answer the inputs _estimate draws again (the same seeds, the same records)
-                est = _estimate(spec, lambda _inputs, rows=rows: rows, preprocess, realisations, segment_s)
-                with contextlib.suppress(OSError):  # unwritable: bla() below estimates it again
+            for k, (spec, key, path, inputs) in enumerate(todo):
+                est = _estimate(spec, inputs, outputs[k * realisations:(k + 1) * realisations], preprocess, segment_s)
+                _MEMORY[key] = est  # bla() below returns it, without reading it back
+                with contextlib.suppress(OSError):  # an unwritable cache directory: kept in memory only
                     _save(path, est)
     return [bla(spec, plant, preprocess=preprocess, realisations=realisations, segment_s=segment_s)
             for spec in specs]
