@@ -40,7 +40,7 @@ from scipy import optimize, signal
 
 from maglev.sim import bla
 from maglev.data import IOData
-from maglev.sim.plant import Levitator, LevitatorParams, rig
+from maglev.sim.plant import DEFAULT_PLANT, PLANTS, Levitator, rig
 from maglev.refdata import load_record, refdata_dir
 from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
                                     FRF_TOLERANCE_DB,
@@ -330,7 +330,8 @@ def frf_figure(cmp: Comparison, path: Path) -> None:
     fig.savefig(path, dpi=80)
 
 
-def _save_figures(lev: Levitator, root: Path | None, out: Path, cmp: Comparison | None = None) -> None:
+def _save_figures(lev: Levitator, root: Path | None, out: Path, cmp: Comparison | None = None,
+                  seed: int = 1) -> None:
     from matplotlib.figure import Figure
 
     from maglev.lab.plots import plot_working_region
@@ -338,7 +339,7 @@ def _save_figures(lev: Levitator, root: Path | None, out: Path, cmp: Comparison 
 
     out.mkdir(parents=True, exist_ok=True)
     stair = load_record("working_region", root)
-    sim = lev.simulate(stair.u, Ts=stair.Ts, seed=1)
+    sim = lev.simulate(stair.u, Ts=stair.Ts, seed=seed)
     fig = Figure(figsize=(10, 4), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
     for d, label in ((stair, "real"), (sim, "sim")):
@@ -357,16 +358,20 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m maglev.sim.calibrate", description=__doc__.split("\n")[0])
     parser.add_argument("--refdata", type=Path, default=None, help="reference data root (default: ../shared/refdata)")
     parser.add_argument("--out", type=Path, default=None, help="directory for PNG figures")
-    parser.add_argument("--no-fit", action="store_true", help="compare the current defaults only")
+    parser.add_argument("--no-fit", action="store_true", help="compare the plant as it is, without refitting")
+    parser.add_argument("--plant", choices=sorted(PLANTS), default=DEFAULT_PLANT,
+                        help=f"named parameter set to start from and compare (default: {DEFAULT_PLANT}, the defaults)")
+    parser.add_argument("--seed", type=int, default=1,
+                        help="seed of the simulated records' noise (default 1, the seed the defaults were chosen on)")
     parser.add_argument("--friction-evals", type=int, default=0,
-                        help="Nelder-Mead evaluations of the friction fit from the defaults (≈ 2 s each; "
+                        help="Nelder-Mead evaluations of the friction fit from the plant (≈ 2 s each; "
                         "default 0: a local polish changes no verdict, docs/simulator.md)")
     args = parser.parse_args(argv)
     root = args.refdata or refdata_dir()
     if root is None:
         print("no reference data found: set MAGLEV_REFDATA or pass --refdata", file=sys.stderr)
         return 2
-    lev = rig()
+    lev = start = rig(args.plant)
     if not args.no_fit:
         stair = load_record("working_region", root)
         lev = fit_static(stair, lev)
@@ -374,14 +379,16 @@ def main(argv: list[str] | None = None) -> int:
             lev = fit_friction(lev, root, maxfev=args.friction_evals)
         lev = fit_noise(load_record("binary_signal_9", root), lev)  # after t_phys: the line's frequency uses it
         fitted = {k: round(float(v), 6) for k, v in vars(lev.params).items()
-                  if not math.isclose(v, getattr(LevitatorParams(), k), rel_tol=1e-4)}
-        print("Fitted parameters (differences from the current defaults):")
+                  if not math.isclose(v, getattr(start.params, k), rel_tol=1e-4)}
+        print(f"Fitted parameters (differences from the plant {args.plant!r}):")
         print("  " + (", ".join(f"{k}={v!r}" for k, v in fitted.items()) or "none"))
         print()
-    cmp = compare(lev, root)
+    cmp = compare(lev, root, seed=args.seed)
+    print(f"Plant {args.plant!r}{'' if args.no_fit else ', refitted'}; simulated records with seed {args.seed}")
+    print()
     print(cmp.table())
     if args.out is not None:
-        _save_figures(lev, root, args.out, cmp)
+        _save_figures(lev, root, args.out, cmp, args.seed)
     return 0
 
 

@@ -146,3 +146,27 @@ def test_friction_errors_are_the_printed_comparison_scaled_by_its_tolerances():
             assert errors[f"armax {key}"] == pytest.approx(abs(err) / tol)
         else:
             assert errors[f"armax {key}"] == calibrate.MISSING_MODE_ERROR
+
+
+def test_calibrate_command_compares_the_named_plant_with_the_given_seed(monkeypatch, capsys, tmp_path):
+    # `--plant stuck_upper --seed 2 --no-fit` compares exactly that plant's parameters on seed 2's records
+    seen = {}
+
+    class Printed:
+        def table(self) -> str:
+            return "the comparison"
+
+    def fake_compare(lev, root, seed):
+        seen.update(params=lev.params, root=root, seed=seed)
+        return Printed()
+
+    monkeypatch.setattr(calibrate, "compare", fake_compare)
+    assert calibrate.main(["--refdata", str(tmp_path), "--no-fit", "--plant", "stuck_upper", "--seed", "2"]) == 0
+    assert seen == dict(params=rig("stuck_upper").params, root=tmp_path, seed=2)
+    assert seen["params"] != rig().params
+    out = capsys.readouterr().out
+    assert out.startswith("Plant 'stuck_upper'; simulated records with seed 2") and "the comparison" in out
+    with pytest.raises(SystemExit) as stop:
+        calibrate.main(["--refdata", str(tmp_path), "--plant", "stuck"])
+    assert stop.value.code == 2
+    assert "invalid choice: 'stuck'" in capsys.readouterr().err
