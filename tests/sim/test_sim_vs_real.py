@@ -561,3 +561,35 @@ def test_binary_to_white_noise_std_ratio_matches_the_rig(full_comparison):
 def test_bla_within_3_db_of_the_rigs_frequency_response(full_comparison):
     for rec in ("binary_signal_2", "white_noise_4"):
         assert full_comparison.frf[rec].max_db <= 3.0, rec
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_stuck_stretched_plant_meets_every_check_of_issue_15_on_the_tests_seed():
+    # docs/simulator.md, fifteenth look: stuck_upper read through a stronger sensor stretch, its damping refitted;
+    # the first plant whose BLA is within 3 dB of the rig's FRF on binary_signal_2 (2.9 dB) and white_noise_4
+    # (2.3 dB) with every other check of the done-when and of the calibration within its tolerance on seed 1
+    # (on 9 of seeds 1-12). Not the defaults: its stair steps overshoot 1-2 % (rig 2-51 %)
+    from maglev.sim.plant import rig
+
+    cmp = sim_vs_real.compare(rig("stuck_stretched"), REAL, seed=1)
+    for rec in ("binary_signal_2", "white_noise_4"):
+        assert cmp.frf[rec].max_db <= sim_vs_real.FRF_TOLERANCE_DB, rec
+    real, sim = (sim_vs_real.two_modes(m) for m in cmp.armax)
+    errs = sim_vs_real.armax_errors(sim, real)
+    assert all(abs(errs[f"{m} wn"]) <= 0.15 and abs(errs[f"{m} zeta"]) <= 0.30 for m in ("slow", "fast"))
+    for rec, (r, s) in cmp.stds.items():
+        assert 0.8 <= s / r <= 1.25, rec
+    real, sim = cmp.std_ratio
+    assert abs(sim / real - 1) <= sim_vs_real.RATIO_TOLERANCE
+    # the checks that held before still hold: static curve, noise, rise time, α*, the identified modes
+    assert cmp.static_rms <= cmp.static_tolerance
+    (std_r, peak_r, q_r), (std_s, peak_s, q_s) = cmp.noise_real, cmp.noise_sim
+    assert std_s == pytest.approx(std_r, rel=0.15) and abs(peak_s - peak_r) < 0.01 and q_s == pytest.approx(q_r, rel=1e-3)
+    assert cmp.rise_sim == pytest.approx(cmp.rise_real, rel=sim_vs_real.RISE_TOLERANCE)
+    assert cmp.alpha_sim == cmp.alpha_real
+    for (wn_r, z_r), (wn_s, z_s) in [*cmp.modes.values(), cmp.white_noise_mode]:
+        assert wn_s == pytest.approx(wn_r, rel=sim_vs_real.MODE_TOLERANCE)
+        assert z_s == pytest.approx(z_r, rel=sim_vs_real.MODE_TOLERANCE)
+    # and what keeps it from being the default: the stair's steps barely overshoot
+    assert max(step.overshoot for step in cmp.steps[1]) < 0.05 < max(step.overshoot for step in cmp.steps[0])

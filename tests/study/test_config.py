@@ -114,7 +114,7 @@ def test_semantic_errors_are_refused_before_a_run():
         check(task(cfg_for(["dataset.preprocess.split=1.5"])))
     with pytest.raises(StudyConfigError, match="alpha"):
         check(task(cfg_for(["dataset=binary_a025", "dataset.alpha=null"])))
-    names = r"\['dry_friction', 'quiet_ageing', 'stick_slip', 'stretched_sensor', 'stuck_upper'\]"
+    names = r"\['dry_friction', 'quiet_ageing', 'stick_slip', 'stretched_sensor', 'stuck_stretched', 'stuck_upper'\]"
     with pytest.raises(StudyConfigError, match=rf"dataset.plant must be one of {names}.*'nope'"):
         check(task(cfg_for(["dataset.plant=nope"])))
 
@@ -127,7 +127,8 @@ def test_simulated_datasets_name_their_plant_and_older_configs_keep_theirs():
 
     ds = task(cfg_for(["dataset=binary_a025", "dataset.duration_s=2"]))["dataset"]
     assert ds["plant"] == DEFAULT_PLANT
-    assert set(PLANTS) == {DEFAULT_PLANT, "stuck_upper", "stretched_sensor", "quiet_ageing", UNNAMED_PLANT}
+    assert set(PLANTS) == {DEFAULT_PLANT, "stuck_upper", "stuck_stretched", "stretched_sensor", "quiet_ageing",
+                           UNNAMED_PLANT}
     old = {k: v for k, v in ds.items() if k != "plant"}
     assert plant_name(old) == UNNAMED_PLANT
     new_y, old_y = load_raw(ds, "").y, load_raw(old, "").y
