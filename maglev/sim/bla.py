@@ -405,23 +405,26 @@ def blas(specs: list[ExperimentSpec], plant: Levitator | None = None, *, preproc
     """
     preprocess = preprocess or Preprocess()
     plant = rig() if plant is None else plant
-    groups: dict[tuple[int, float], list[tuple[ExperimentSpec, str, Path, np.ndarray]]] = {}
+    groups: dict[tuple[int, float], list[tuple[ExperimentSpec, str, Path]]] = {}
     for spec in specs:
         key = cache_key(spec, plant, preprocess, realisations, segment_s)
         path = cache_dir() / f"{key}.npz"
         if not path.is_file() and realisations >= BATCH_FROM:
-            inputs = _inputs(spec, realisations)
-            groups.setdefault((inputs.shape[1], spec.Ts), []).append((spec, key, path, inputs))
+            groups.setdefault((spec.n, spec.Ts), []).append((spec, key, path))
     for (_, Ts), members in groups.items():
         if len(members) < 2:  # bla() below estimates it alone
             continue
         with contextlib.ExitStack() as held:
-            for path in sorted({path for _, _, path, _ in members}):
+            for path in sorted({path for _, _, path in members}):
                 held.enter_context(_one_estimator(path))
             todo = [m for m in members if not m[2].is_file()]  # the others were made while this one waited
-            outputs = plant.simulate_batch(np.vstack([inputs for *_, inputs in todo]), Ts=Ts) if todo else None
-            for k, (spec, key, path, inputs) in enumerate(todo):
-                est = _estimate(spec, inputs, outputs[k * realisations:(k + 1) * realisations], preprocess, segment_s)
+            if not todo:
+                continue
+            inputs = [_inputs(spec, realisations) for spec, _, _ in todo]
+            outputs = plant.simulate_batch(np.vstack(inputs), Ts=Ts)
+            for k, (spec, key, path) in enumerate(todo):
+                est = _estimate(spec, inputs[k], outputs[k * realisations:(k + 1) * realisations], preprocess,
+                                segment_s)
                 _MEMORY[key] = est  # bla() below returns it, without reading it back
                 with contextlib.suppress(OSError):  # an unwritable cache directory: kept in memory only
                     _save(path, est)
