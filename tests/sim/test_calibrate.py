@@ -38,6 +38,26 @@ def test_static_fit_recovers_a_curve_close_to_the_real_one():
     assert np.sqrt(np.mean((fitted.static_curve(u_bar) - y_bar) ** 2)) < 0.01
 
 
+def test_a_sticking_plants_static_curve_is_fitted_to_its_simulated_staircase():
+    """stuck_stretched's upper magnet stops where it first arrives, short of the equilibrium: fitted to the
+    equilibria, its static parameters miss the plant's own noise-free staircase; fitted to the simulated
+    staircase (what calibrate's main does for a plant that sticks) they find it again, from 0.02 cm off."""
+    from maglev.lab.signals import staircase
+
+    truth = rig("stuck_stretched")
+    assert truth.params.sticks
+    stair = truth.simulate(staircase(np.arange(0.0, 10.5, 0.5), 500), noise=False)
+    _, y_bar = stair_averages(stair)
+
+    def rms(lev):
+        return float(np.sqrt(np.mean((stair_averages(lev.simulate(stair.u, noise=False))[1] - y_bar) ** 2)))
+
+    start = truth.with_params(y_off=truth.params.y_off + 0.02)
+    assert rms(calibrate.fit_static(stair, start)) > 0.01  # the equilibria are the wrong target
+    fitted = calibrate.fit_simulated_static(stair, start, max_nfev=2)
+    assert rms(fitted) < 0.001 < rms(start)
+
+
 # ---------------------------------------------------------------------- dynamics (issues #3, #15)
 
 @needs_real
@@ -170,3 +190,39 @@ def test_calibrate_command_compares_the_named_plant_with_the_given_seed(monkeypa
         calibrate.main(["--refdata", str(tmp_path), "--plant", "stuck"])
     assert stop.value.code == 2
     assert "invalid choice: 'stuck'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("plant", ["stuck_stretched", "stretched_sensor"])
+def test_calibrate_refits_a_sticking_plants_static_curve_on_its_simulated_staircase(monkeypatch, capsys, tmp_path,
+                                                                                    plant):
+    # the refit's order: equilibria, then (for a plant whose bushings stick) its simulated staircase, then noise;
+    # the comparison gets the last fit's plant
+    calls = []
+
+    def step(name, change):
+        def fit(data, lev, **_):
+            calls.append((name, data, lev.params))
+            return lev.with_params(**change)
+        return fit
+
+    monkeypatch.setattr(calibrate, "load_record", lambda name, root: name)
+    monkeypatch.setattr(calibrate, "fit_static", step("static", dict(y_off=0.5)))
+    monkeypatch.setattr(calibrate, "fit_simulated_static", step("simulated", dict(y_off=0.4)))
+    monkeypatch.setattr(calibrate, "fit_noise", step("noise", dict(noise_std=0.002)))
+    compared = []
+
+    class Printed:
+        def table(self) -> str:
+            return "the comparison"
+
+    monkeypatch.setattr(calibrate, "compare", lambda lev, root, seed: compared.append(lev.params) or Printed())
+    assert calibrate.main(["--refdata", str(tmp_path), "--plant", plant]) == 0
+    sticks = rig(plant).params.sticks
+    assert sticks == (plant == "stuck_stretched")
+    expected = ["static", "simulated", "noise"] if sticks else ["static", "noise"]
+    assert [name for name, *_ in calls] == expected
+    assert calls[0][1] == "working_region" and calls[0][2] == rig(plant).params
+    if sticks:
+        assert calls[1][1] == "working_region" and calls[1][2].y_off == 0.5
+    assert compared == [rig(plant).with_params(y_off=0.4 if sticks else 0.5, noise_std=0.002).params]
+    assert "y_off=" in capsys.readouterr().out
