@@ -1,8 +1,9 @@
 """Fit the levitator simulator to the real KTH records (``python -m maglev.sim.calibrate``).
 
-Why: the defaults of :class:`maglev.sim.plant.LevitatorParams` must be reproducible from
-the public lab data.  ``python -m maglev.sim.calibrate`` runs fits 1, 3 and 2 (in that
-order) and prints the simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_real`:
+Why: the simulator's parameter sets (:data:`maglev.sim.plant.PLANTS`, the default plant
+``DEFAULT_PLANT`` among them) must be reproducible from the public lab data.
+``python -m maglev.sim.calibrate`` runs fits 1, 3 and 2 (in that order) and prints the
+simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_real`:
 
 1. static: coil law (a, b, n), pull on the upper magnet (kappa), sensor offset and
    regulator saturation, by least squares of the equilibria against the stationary
@@ -21,8 +22,8 @@ order) and prints the simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_re
    and issue 15's checks: ARMAX [4 4 4 1] modes of binary_signal_2 (15 % / 30 %), output
    stds of seven records within [0.8, 1.25] of the real ones, the α .25 / white-noise
    std ratio within 25 %, and the frequency response within 3 dB where coherent.
-   Not run by default (``--friction-evals``): the defaults meet the first group and part
-   of issue 15's, and a local polish from them changes no verdict (docs/simulator.md).
+   Not run by default (``--friction-evals``): the default plant meets the first group and
+   issue 15's on the default seed, and a local polish from it changes no verdict (docs/simulator.md).
    The repulsion law's c and d (d = 10 cm, c for the same gap at 2.75 A) came from the
    fifth attempt's search, with the static curve refitted (fit 1).
 
@@ -388,9 +389,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="directory for PNG figures")
     parser.add_argument("--no-fit", action="store_true", help="compare the plant as it is, without refitting")
     parser.add_argument("--plant", choices=sorted(PLANTS), default=DEFAULT_PLANT,
-                        help=f"named parameter set to start from and compare (default: {DEFAULT_PLANT}, the defaults)")
+                        help=f"named parameter set to start from and compare (default: {DEFAULT_PLANT}, the default plant)")
     parser.add_argument("--seed", type=int, default=1,
-                        help="seed of the simulated records' noise (default 1, the seed the defaults were chosen on)")
+                        help="seed of the simulated records' noise (default 1, the seed the default plant was chosen on)")
     parser.add_argument("--friction-evals", type=int, default=0,
                         help="Nelder-Mead evaluations of the friction fit from the plant (≈ 2 s each; "
                         "default 0: a local polish changes no verdict, docs/simulator.md)")

@@ -67,7 +67,7 @@ class SimDatasetCfg:
     duration_s: float = 24.0  # lab §3.4: >= 10 s estimation and 7 s validation after trimming
     seed: int = 0
     Ts: float = 0.001
-    plant: str = "stick_slip"  # the simulator's parameter set (maglev.sim.plant.PLANTS)
+    plant: str = "stuck_stretched"  # the simulator's parameter set (maglev.sim.plant.PLANTS, DEFAULT_PLANT)
     preprocess: PreprocessCfg = field(default_factory=PreprocessCfg)
 
 

@@ -1,6 +1,6 @@
-"""Tests of maglev.sim.sim_vs_real: the simulator's defaults reproduce the real KTH records.
+"""Tests of maglev.sim.sim_vs_real: the simulator's default plant reproduces the real KTH records.
 
-Each test replays a real record's input through the default simulator and compares
+Each test replays a real record's input through the default plant (``rig()``, ``DEFAULT_PLANT``) and compares
 the numbers the lab computes on both; the real records are needed (skips otherwise).
 """
 
@@ -14,7 +14,7 @@ import pytest
 from maglev.data import IOData
 from maglev.sim import bla as bla_mod, sim_vs_real
 from maglev.sim.bla import FrequencyResponse
-from maglev.sim.plant import Levitator
+from maglev.sim.plant import rig
 from maglev.refdata import KTH_2022, load_record
 
 REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
@@ -63,7 +63,7 @@ def _assert_the_lab_checks_hold(cmp: sim_vs_real.Comparison) -> None:
 @needs_real
 @pytest.mark.realdata
 def test_defaults_reproduce_the_real_records():
-    cmp = sim_vs_real.compare(Levitator(zero_at_10=True), REAL, records=("binary_signal_3",),
+    cmp = sim_vs_real.compare(rig(), REAL, records=("binary_signal_3",),
                               fourth_order_records=(), armax_check=False, frf_records=())
     _assert_the_lab_checks_hold(cmp)
     (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
@@ -83,7 +83,7 @@ STD_FACTOR = 2.0  # every record's simulated output std within this factor of th
 
 @pytest.fixture(scope="module")
 def full_comparison():
-    return sim_vs_real.compare(Levitator(zero_at_10=True), REAL)
+    return sim_vs_real.compare(rig(), REAL)
 
 
 @needs_real
@@ -97,7 +97,7 @@ def test_the_table_prints_each_records_coherent_and_incoherent_output_per_band(f
     end = table.index("", head) if "" in table[head:] else len(table)
     section = table[head + 3:end]  # after the header and the two column-title lines
     assert len(section) == 2 * len(sim_vs_real.SPLIT_RECORDS)  # a real and a sim line per record
-    lev = Levitator(zero_at_10=True)
+    lev = rig()
     for rec in sim_vs_real.SPLIT_RECORDS:
         rows = [i for i, line in enumerate(section) if line.split()[:1] == [rec]]
         assert len(rows) == 1, rec  # one real line, the sim line under it
@@ -293,13 +293,14 @@ def test_only_the_rigs_alpha_quarter_full_range_record_hops_and_the_table_prints
 @pytest.mark.realdata
 def test_the_rigs_small_white_noise_records_are_less_steady_than_the_std_band_is_wide(full_comparison):
     # measured on the rig's records (docs/simulator.md, ninth look): white_noise_1's and white_noise_2's thirds
-    # differ by more than the whole band [0.8, 1.25] (1.56x), while the simulator's replays of the same inputs
-    # stay within 1.25x; so a single small record knows its own std no better than the check's band
+    # differ by more than the whole band [0.8, 1.25] (1.72x, 1.76x), so a single small record knows its own std no
+    # better than the check's band. The default plant's wander makes its replays unsteady too, less than the rig
+    # (1.33x, 1.16x on seed 1; stick_slip's stayed within 1.25x)
     band = sim_vs_real.STD_TOLERANCE ** 2
     for rec in ("white_noise_1", "white_noise_2"):
         real, sim = full_comparison.std_parts[rec]
         assert max(real) / min(real) > band, rec
-        assert max(sim) / min(sim) < sim_vs_real.STD_TOLERANCE, rec
+        assert max(sim) / min(sim) < max(real) / min(real), rec
     table = full_comparison.table()
     assert "spread: largest / smallest std of 3 consecutive pieces" in table
 
@@ -308,10 +309,10 @@ def test_the_rigs_small_white_noise_records_are_less_steady_than_the_std_band_is
 @pytest.mark.realdata
 def test_the_2022_records_sit_below_the_staircases_static_curve(full_comparison):
     # a session offset (docs/simulator.md, ninth look): at the same currents every 2022 record reads lower than
-    # the simulator fitted to the 2022 staircase, by 0.08-0.47 cm, far beyond the sensor noise (0.002 cm); the
-    # constant-3 A record reads below the staircase's own 3 A level by about as much
+    # the simulator fitted to the 2022 staircase, by 0.18-0.51 cm (stick_slip 0.08-0.47 cm), far beyond the sensor
+    # noise (0.002 cm); the constant-3 A record reads below the staircase's own 3 A level by about as much
     for rec, (real, sim) in full_comparison.levels.items():
-        assert 0.05 <= sim - real <= 0.5, (rec, real, sim)
+        assert 0.05 <= sim - real <= 0.6, (rec, real, sim)
     stair = load_record("working_region", REAL)
     u_bar, y_bar = sim_vs_real.stair_averages(stair)
     constant = sim_vs_real.output_level(load_record("binary_signal_9", REAL))
@@ -523,12 +524,12 @@ def test_the_simulated_plant_offers_armax_both_modes_the_sensor_noise_line_can_h
     # is removed (same seed, the broadband part of the sensor noise kept)
     assert all(sim_vs_real.two_modes(full_comparison.armax_noise_free))
     real = load_record(sim_vs_real.ARMAX_RECORD, REAL)
-    no_line = Levitator(zero_at_10=True).with_params(noise_line_fraction=0.0).simulate(real.u, Ts=real.Ts, seed=1)
+    no_line = rig().with_params(noise_line_fraction=0.0).simulate(real.u, Ts=real.Ts, seed=1)
     assert all(sim_vs_real.two_modes(sim_vs_real.armax_modes_of(no_line)))
 
 
-# Issue 15's done-when checks. The one the defaults do not meet yet (docs/simulator.md, "Not met, and why") is a
-# strict xfail, so the suite says so when a new plant model meets it.
+# Issue 15's done-when checks, met by the default plant (stuck_stretched) since 2026-11-27 on the tests' seed
+# (docs/simulator.md, fifteenth and sixteenth looks)
 def _assert_armax_modes_match(cmp: sim_vs_real.Comparison) -> None:
     real, sim = (sim_vs_real.two_modes(m) for m in cmp.armax)
     errs = sim_vs_real.armax_errors(sim, real)
@@ -554,54 +555,39 @@ def _assert_bla_within_3_db(cmp: sim_vs_real.Comparison) -> None:
 @needs_real
 @pytest.mark.realdata
 def test_armax_modes_of_binary_signal_2_match_the_rig(full_comparison):
-    # the rig 74/0.26 + 218/0.11; simulated 74/0.23 + 219/0.14 on stick_slip (81/0.21 + 234/0.14 with the sensor's
-    # stretch alone; with the linear sensor the fast mode read ζ 0.18, docs/simulator.md, eighth and ninth looks)
+    # the rig 74/0.26 + 218/0.11; simulated 72/0.25 + 217/0.13 on stuck_stretched, 74/0.23 + 219/0.14 on stick_slip
+    # (81/0.21 + 234/0.14 with the sensor's stretch alone; with the linear sensor the fast mode read ζ 0.18)
     _assert_armax_modes_match(full_comparison)
 
 
 @needs_real
 @pytest.mark.realdata
 def test_output_stds_match_the_rig(full_comparison):
-    # since stick_slip (2026-11-26, docs/simulator.md, ninth look): 0.91 0.82 1.07 1.247 (binary_signal_1-4),
-    # 0.82 0.97 1.05 (white_noise_1/2/4); binary_signal_4 was 1.43x on the plants before it
+    # stuck_stretched: 1.06 1.09 1.22 1.21 (binary_signal_1-4), 0.82 1.04 0.99 (white_noise_1/2/4); stick_slip
+    # 0.91 0.82 1.07 1.247 and 0.82 0.97 1.05; binary_signal_4 was 1.43x on the plants before stick_slip
     _assert_output_stds_match(full_comparison)
 
 
 @needs_real
 @pytest.mark.realdata
 def test_binary_to_white_noise_std_ratio_matches_the_rig(full_comparison):
-    # α .25 against uniform white noise over the same 1.5-4 A: 20.3x on the rig, 15.9x simulated since the
-    # sensor's stretch and on stick_slip (14.1x before it, docs/simulator.md)
+    # α .25 against uniform white noise over the same 1.5-4 A: 20.3x on the rig, 22.4x on stuck_stretched, 15.9x on
+    # stick_slip (14.1x before the sensor's stretch, docs/simulator.md)
     _assert_std_ratio_matches(full_comparison)
 
 
 @needs_real
 @pytest.mark.realdata
-@pytest.mark.xfail(strict=True, reason="BLA 5.1 dB off the rig's FRF on binary_signal_2 and 5.4 dB on "
-                   "white_noise_4 (docs/simulator.md, seventh to fourteenth looks; an exact simulator would read 2.2 dB)")
 def test_bla_within_3_db_of_the_rigs_frequency_response(full_comparison):
+    # stuck_stretched: 2.9 dB on binary_signal_2, 2.3 dB on white_noise_4; an exact simulator would read 2.2 dB.
+    # stick_slip read 5.1 and 5.4 dB (docs/simulator.md, seventh to fifteenth looks)
     _assert_bla_within_3_db(full_comparison)
 
 
 @needs_real
 @pytest.mark.realdata
-def test_the_stuck_stretched_plant_meets_every_check_of_issue_15_on_the_tests_seed():
-    # docs/simulator.md, fifteenth look: stuck_upper read through a stronger sensor stretch, its damping refitted;
-    # the first plant whose BLA is within 3 dB of the rig's FRF on binary_signal_2 (2.9 dB) and white_noise_4
-    # (2.3 dB) with every other check of the done-when and of the calibration within its tolerance on seed 1
-    # (on 9 of seeds 1-12). Not the defaults: its stair steps overshoot 1-2 % (rig 2-51 %)
-    from maglev.sim.plant import rig
-
-    cmp = sim_vs_real.compare(rig("stuck_stretched"), REAL, seed=1, fourth_order_records=(sim_vs_real.WHITE_RECORD,),
-                              frf_records=("binary_signal_2", "white_noise_4"), split_records=())
-    _assert_bla_within_3_db(cmp)
-    _assert_armax_modes_match(cmp)
-    _assert_output_stds_match(cmp)
-    _assert_std_ratio_matches(cmp)
-    # the checks that held before still hold: static curve, noise, rise time, α*, the identified modes
-    _assert_the_lab_checks_hold(cmp)
-    for (wn_r, z_r), (wn_s, z_s) in [*cmp.modes.values(), cmp.white_noise_mode]:
-        assert wn_s == pytest.approx(wn_r, rel=sim_vs_real.MODE_TOLERANCE)
-        assert z_s == pytest.approx(z_r, rel=sim_vs_real.MODE_TOLERANCE)
-    # and what keeps it from being the default: the stair's steps barely overshoot
-    assert max(step.overshoot for step in cmp.steps[1]) < 0.05 < max(step.overshoot for step in cmp.steps[0])
+def test_what_the_default_plant_gives_up_its_stair_steps_barely_overshoot(full_comparison):
+    # the stuck upper magnet stops where it first arrives: 1-2 % against the rig's 2-51 % (stick_slip: 7-26 %).
+    # The lab reads the rise time from these steps, and that still holds (test_defaults_reproduce_the_real_records)
+    real, sim = full_comparison.steps
+    assert max(step.overshoot for step in sim) < 0.05 < max(step.overshoot for step in real)

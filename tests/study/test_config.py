@@ -127,7 +127,7 @@ def test_simulated_datasets_name_their_plant_and_older_configs_keep_theirs():
 
     ds = task(cfg_for(["dataset=binary_a025", "dataset.duration_s=2"]))["dataset"]
     assert ds["plant"] == DEFAULT_PLANT
-    assert set(PLANTS) == {DEFAULT_PLANT, "stuck_upper", "stuck_stretched", "stretched_sensor", "quiet_ageing",
+    assert set(PLANTS) == {DEFAULT_PLANT, "stick_slip", "stuck_upper", "stretched_sensor", "quiet_ageing",
                            UNNAMED_PLANT}
     old = {k: v for k, v in ds.items() if k != "plant"}
     assert plant_name(old) == UNNAMED_PLANT
