@@ -104,6 +104,25 @@ def test_two_order_grid_is_at_its_edge_only_when_the_fit_still_moves_by_more_tha
         assert found[0].numbers["suggest"] == {"upper": 6, "lower": 3}[expected]
 
 
+@pytest.mark.parametrize("bla5, grows", [(0.3, True), (0.05, False), (0.1, False)])
+def test_an_order_edge_says_when_the_fit_rises_while_the_models_move_away_from_the_bla(bla5, grows):
+    # ARX's simulation FIT rises by 1.3 points from order 4 to 5 (an upper edge); its distance to the BLA is 0.1 at
+    # order 4 and bla5 at order 5: only a distance that grows undermines the rise
+    t = ranked([r if r[2] == 4 else (*r[:5], r[5] + 1.3, r[6]) for r in TWO])
+    t.loc[t["order"] == 5, "g_bla_err"] = bla5
+    [edge] = [c for c in cautions(t) if c.key == "order_at_edge_arx"]
+    assert edge.numbers["edge"] == "upper"
+    sentence = (f" Yet its mean distance to the best linear approximation over 2 dataset(s) grows from order 4 to 5 "
+                f"(0.1 to {bla5:.3g}): the higher order gains FIT from output the input does not explain linearly, "
+                f"not from G.")
+    assert edge.text.endswith(sentence) == grows
+    assert edge.text.endswith("before concluding.") != grows
+    assert edge.numbers.get("bla") == ({4: 0.1, 5: bla5} if grows else None)
+    t["g_bla_err"] = np.nan  # real datasets have no BLA: no such sentence
+    [edge] = [c for c in cautions(t) if c.key == "order_at_edge_arx"]
+    assert edge.text.endswith("before concluding.") and "bla" not in edge.numbers
+
+
 def test_order_choice_uses_only_the_datasets_swept_at_every_order():
     from maglev.study.cautions import order_choice
 

@@ -245,7 +245,8 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     from order 4 to 5. ARX always does (its noise model 1/A needs order 7 before the FIT levels off: README,
     "Choosing the orders"). On stick_slip ARMAX, OE and BJ levelled off at 4; on the default plant since 2026-11-27
     ARMAX and OE rise too (mean +2.2 and +1.4 points, most of it on uniform_narrow, where the higher order follows
-    more of the wander: OE 9.1 -> 16.2 %), BJ does not."""
+    more of the wander: OE 9.1 -> 16.2 %), BJ does not. Their cautions then say that the models' mean distance to
+    the BLA grows meanwhile (OE 0.43 -> 1.16); ARX's falls (0.59 -> 0.39)."""
     from maglev.study.cautions import ORDER_MARGIN
     from maglev.study.ranking import model_order
 
@@ -254,12 +255,16 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
     path = client.download_artifacts(ranking.info.run_id, "cautions/cautions.json")
     with open(path) as fh:
-        keys = [c["key"] for c in json.load(fh)]
+        listed = json.load(fh)
+    keys = [c["key"] for c in listed]
     assert len(keys) == int(ranking.data.metrics["n_cautions"])
     fits = collections.defaultdict(lambda: collections.defaultdict(list))  # structure -> order -> sim FITs
+    dists = collections.defaultdict(lambda: collections.defaultdict(list))  # structure -> order -> g_bla_err
     for ds_runs in model_runs(store).values():
         for r in ds_runs:
-            fits[r.data.tags["structure"]][int(model_order(r.data.tags["orders"]))].append(r.data.metrics["val_fit_sim"])
+            st, order = r.data.tags["structure"], int(model_order(r.data.tags["orders"]))
+            fits[st][order].append(r.data.metrics["val_fit_sim"])
+            dists[st][order].append(r.data.metrics["g_bla_err"])
     assert sorted(fits) == ["armax", "arx", "bj", "oe"]
     rising = set()
     for st, by_order in fits.items():
@@ -268,6 +273,11 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
         if mean[5] - mean[4] > ORDER_MARGIN:
             rising.add(st)
     assert {k.removeprefix("order_at_edge_") for k in keys if k.startswith("order_at_edge")} == rising
+    # and a rising FIT's caution says when the models move away from the BLA meanwhile
+    for c in listed:
+        if c["key"].startswith("order_at_edge_"):
+            d = {o: sum(v) / len(v) for o, v in dists[c["key"].removeprefix("order_at_edge_")].items()}
+            assert ("Yet its mean distance to the best linear approximation" in c["text"]) == (d[5] > d[4]), c
     assert "arx" in rising
 
 
