@@ -131,11 +131,13 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     """The order a structure's runs support, by mean simulation FIT (``val_fit_sim``) over the datasets swept at
     every order, with the parsimony rule: the smallest order within ``margin`` FIT points of the best.
 
-    Returns ``{"chosen", "best", "grid", "fit": {order: mean FIT}, "datasets", "edge", "suggest"}`` (None with
-    fewer than two orders).  ``edge`` is ``"upper"`` when the chosen order is the largest swept (every lower
-    order simulates more than ``margin`` worse: the FIT still rises at the top of the grid), ``"lower"`` when
-    the smallest swept order (> 1) simulates more than ``margin`` better than every other (the FIT falls as the
-    order rises from the bottom), else None: the FIT levels off inside the grid or within the margin across it.
+    Returns ``{"chosen", "best", "grid", "fit": {order: mean FIT}, "datasets", "edge", "suggest", "bla",
+    "bla_datasets"}`` (None with fewer than two orders).  ``edge`` is ``"upper"`` when the chosen order is the
+    largest swept (every lower order simulates more than ``margin`` worse: the FIT still rises at the top of the
+    grid), ``"lower"`` when the smallest swept order (> 1) simulates more than ``margin`` better than every other
+    (the FIT falls as the order rises from the bottom), else None: the FIT levels off inside the grid or within
+    the margin across it.  ``bla`` is the mean ``g_bla_err`` by order over the ``bla_datasets`` datasets that
+    have it at every order (empty for recorded data), which :func:`away_from_bla` reads.
     """
     if "val_fit_sim" not in runs or "order" not in runs:
         return None
@@ -151,19 +153,30 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
         edge, suggest = "upper", grid[-1] + 1
     elif best == grid[0] > 1 and all(fit[best] - fit[o] > margin for o in grid[1:]):
         edge, suggest = "lower", grid[0] - 1
+    bla, n_bla = _bla_by_order(runs)
     return {"chosen": chosen, "best": best, "grid": grid, "fit": fit, "datasets": len(by), "edge": edge,
-            "suggest": suggest}
+            "suggest": suggest, "bla": bla, "bla_datasets": n_bla}
+
+
+def away_from_bla(choice: dict) -> str:
+    """The sentence that undermines an upper edge (:func:`order_choice`), or "": the FIT still rises at the top
+    while the models' mean distance to the best linear approximation grows from the order below it, so the
+    higher order gains FIT from output the input does not explain linearly, not from G. (On the default plant's
+    ``uniform_narrow``, OE of order 5 follows more of the wander: 9 -> 16 % FIT while its distance to the BLA
+    grows from 0.77 to 2.89.)"""
+    bla, grid = choice["bla"], choice["grid"]
+    below, top = grid[-2], grid[-1]
+    if choice["edge"] != "upper" or not {below, top} <= set(bla) or not bla[top] > bla[below]:
+        return ""
+    return (f"Yet the models' mean distance to the best linear approximation over {choice['bla_datasets']} "
+            f"dataset(s) grows from order {below} to {top} ({bla[below]:.3g} to {bla[top]:.3g}): the higher order "
+            f"gains FIT from output the input does not explain linearly, not from G.")
 
 
 def order_edges(table: pd.DataFrame) -> list[Caution]:
     """A structure whose order supported by the simulation FIT (:func:`order_choice`) sits at an edge of the
-    swept orders: the FIT still changes by more than ``ORDER_MARGIN`` points toward that edge.
-
-    When the FIT still rises at the top while the models' mean distance to the best linear approximation
-    (``g_bla_err``, on the datasets that have one) grows from the next lower order, the caution says so: the
-    higher order gains FIT from output the input does not explain linearly, not from G. (On the default
-    plant's ``uniform_narrow``, OE of order 5 follows more of the wander: 9 -> 16 % FIT while its distance to
-    the BLA grows from 0.77 to 2.89.)"""
+    swept orders: the FIT still changes by more than ``ORDER_MARGIN`` points toward that edge, and, when the
+    models move away from the best linear approximation meanwhile, that (:func:`away_from_bla`)."""
     out = []
     for st, runs in table.groupby("structure", sort=False):
         c = order_choice(runs)
@@ -183,13 +196,10 @@ def order_edges(table: pd.DataFrame) -> list[Caution]:
                    f"{ORDER_MARGIN:g} point above every other: it falls as the order rises from the edge of the swept "
                    f"orders {grid}")
         text = f"{why}; add order {c['suggest']} (structure.order) before concluding."
-        below, top = grid[-2], grid[-1]
-        bla, n = _bla_by_order(runs)
-        if c["edge"] == "upper" and {below, top} <= set(bla) and bla[top] > bla[below]:
-            text += (f" Yet its mean distance to the best linear approximation over {n} dataset(s) grows from "
-                     f"order {below} to {top} ({bla[below]:.3g} to {bla[top]:.3g}): the higher order gains FIT from "
-                     f"output the input does not explain linearly, not from G.")
-            numbers["bla"] = {below: bla[below], top: bla[top]}
+        undermined = away_from_bla(c)
+        if undermined:
+            text += " " + undermined
+            numbers["bla"] = {o: c["bla"][o] for o in grid[-2:]}
         out.append(Caution(f"order_at_edge_{st}", text, numbers))
     return out
 

@@ -112,7 +112,7 @@ def test_an_order_edge_says_when_the_fit_rises_while_the_models_move_away_from_t
     t.loc[t["order"] == 5, "g_bla_err"] = bla5
     [edge] = [c for c in cautions(t) if c.key == "order_at_edge_arx"]
     assert edge.numbers["edge"] == "upper"
-    sentence = (f" Yet its mean distance to the best linear approximation over 2 dataset(s) grows from order 4 to 5 "
+    sentence = (f" Yet the models' mean distance to the best linear approximation over 2 dataset(s) grows from order 4 to 5 "
                 f"(0.1 to {bla5:.3g}): the higher order gains FIT from output the input does not explain linearly, "
                 f"not from G.")
     assert edge.text.endswith(sentence) == grows

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import html
 import io
 import json
 import math
@@ -250,7 +251,7 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     from maglev.study.cautions import ORDER_MARGIN
     from maglev.study.ranking import model_order
 
-    store, _, _ = lab_sweep
+    store, reports, _ = lab_sweep
     client, _, runs = all_runs(store)
     [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
     path = client.download_artifacts(ranking.info.run_id, "cautions/cautions.json")
@@ -273,11 +274,18 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
         if mean[5] - mean[4] > ORDER_MARGIN:
             rising.add(st)
     assert {k.removeprefix("order_at_edge_") for k in keys if k.startswith("order_at_edge")} == rising
-    # and a rising FIT's caution says when the models move away from the BLA meanwhile
+    # and a rising FIT's caution says when the models move away from the BLA meanwhile, as the report's structures
+    # section does under the structure's heading
+    page = report_file(reports).read_text()
+    structures = dict(re.findall(r"<section id='([^']+)'>(.*?)</section>", page, flags=re.S))["structures"]
     for c in listed:
         if c["key"].startswith("order_at_edge_"):
-            d = {o: sum(v) / len(v) for o, v in dists[c["key"].removeprefix("order_at_edge_")].items()}
-            assert ("Yet its mean distance to the best linear approximation" in c["text"]) == (d[5] > d[4]), c
+            st = c["key"].removeprefix("order_at_edge_")
+            d = {o: sum(v) / len(v) for o, v in dists[st].items()}
+            undermined = "Yet the models' mean distance to the best linear approximation"
+            assert (undermined in c["text"]) == (d[5] > d[4]), c
+            under_heading = html.unescape(structures.split(f"<h3>{st.upper()}</h3>")[1].split("<h3>")[0])
+            assert (undermined in under_heading) == (d[5] > d[4]), st
     assert "arx" in rising
 
 

@@ -18,7 +18,7 @@ import pandas as pd
 from maglev.model import CANCEL_TOL, PolyModel
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
-from maglev.study.cautions import ORDER_MARGIN, order_choice
+from maglev.study.cautions import ORDER_MARGIN, away_from_bla, order_choice
 from maglev.study.figures import orders_figure, png
 from maglev.study.ranking import validation_note
 from maglev.validation import format_p
@@ -253,6 +253,9 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol
                 where = ", inside the swept orders."
             choice += (f" Mean simulation FIT by order ({listed}): the smallest order within {ORDER_MARGIN:g} point "
                        f"of the best is <b>{oc['chosen']}</b>{where}")
+            undermined = away_from_bla(oc)
+            if undermined:
+                choice += " " + esc(undermined)
         if flagged:
             choice += " Near cancellations mean the order is higher than the data support."
         entry = get_structure(st)
