@@ -8,8 +8,9 @@ simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_real`:
 1. static: coil law (a, b, n), pull on the upper magnet (kappa), sensor offset and
    regulator saturation, by least squares of the equilibria against the stationary
    averages of the real staircase (``working_region``); c and d are kept. For a plant whose
-   bushings stick, then to the same averages of its noise-free simulation of the staircase
-   (``fit_simulated_static``), since its magnets stop short of the equilibria;
+   bushings stick, to the same averages of its noise-free simulation of the staircase instead
+   (``fit_simulated_static``, from the plant's values or the equilibria's fit, whichever is
+   closer), since its magnets stop short of the equilibria;
 2. noise: std, mains-ripple line (aliased frequency, width, share) and ADC step from
    the constant-current record ``binary_signal_9``;
 3. dynamics (``fit_friction``): the damping law of both bushings (in motion, while the
@@ -86,21 +87,24 @@ def fit_static(stair: IOData, base: Levitator) -> Levitator:
     return _fit_static_params(base, lambda lev: lev.static_curve(u_bar), y_bar)
 
 
-def fit_simulated_static(stair: IOData, base: Levitator, max_nfev: int = SIMULATED_STATIC_EVALS) -> Levitator:
+def fit_simulated_static(stair: IOData, *starts: Levitator, max_nfev: int = SIMULATED_STATIC_EVALS) -> Levitator:
     """Fit ``STATIC_PARAMS`` so that the plant's noise-free simulation of the staircase has the real one's
-    stationary averages, from ``base``'s values (least squares, ``max_nfev`` evaluations of 21 levels).
+    stationary averages (least squares, at most ``max_nfev`` evaluations of 21 levels), from whichever of
+    ``starts`` (plants that differ in ``STATIC_PARAMS`` at most) simulates the staircase closest.
 
     Why: a bushing that sticks holds its magnet where it first arrives, short of the equilibrium, so the
-    equilibria's fit (:func:`fit_static`) is the wrong target for it. On stuck_stretched the equilibria put the
-    simulated staircase 0.074 cm rms off (tolerance 0.0091); 40 evaluations from there bring it to 0.0064 cm,
-    and the whole ``maglev calibrate`` takes ≈ 45 s. The named plants that stick had their static curves
-    fitted this way (docs/simulator.md).
+    equilibria's fit (:func:`fit_static`) is the wrong target for it, though it can be a start. On
+    stuck_stretched the equilibria put the simulated staircase 0.074 cm rms off (tolerance 0.0091); 40
+    evaluations from there reach 0.0064 cm at another point of the coil law's ridge (a, b and n trade), from
+    the plant's own values it stays where it is (0.0063 cm). The named plants that stick had their static
+    curves fitted this way (docs/simulator.md).
     """
     _, y_bar = stair_averages(stair)
 
     def simulated(lev: Levitator) -> np.ndarray:
         return stair_averages(lev.simulate(stair.u, Ts=stair.Ts, noise=False))[1]
 
+    base = min(starts, key=lambda lev: float(np.sum((simulated(lev) - y_bar) ** 2)))
     return _fit_static_params(base, simulated, y_bar, max_nfev=max_nfev, diff_step=1e-3)
 
 
@@ -403,9 +407,9 @@ def main(argv: list[str] | None = None) -> int:
     lev = start = rig(args.plant)
     if not args.no_fit:
         stair = load_record("working_region", root)
-        lev = fit_static(stair, lev)
-        if lev.params.sticks:  # its magnets stop short of the equilibria: fit the simulated staircase
-            lev = fit_simulated_static(stair, lev)
+        equilibria = fit_static(stair, lev)
+        # a plant that sticks stops short of the equilibria: fit its simulated staircase from the closer start
+        lev = fit_simulated_static(stair, lev, equilibria) if lev.params.sticks else equilibria
         if args.friction_evals > 0:
             lev = fit_friction(lev, root, maxfev=args.friction_evals)
         lev = fit_noise(load_record("binary_signal_9", root), lev)  # after t_phys: the line's frequency uses it
