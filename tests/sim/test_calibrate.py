@@ -78,14 +78,14 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
                                    gamma_aged_upper=0.0)
     errors_motion, penalty_motion = calibrate.friction_errors(in_motion, targets)
     assert max(errors_motion.get(k, math.inf) for k in legacy) > 1.0
-    # and the defaults score better than the previous defaults (Coulomb + Stribeck friction, d = 4.2 cm)
+    # and the default plant scores better than the defaults before 2026-11-23 (Coulomb + Stribeck friction, d = 4.2 cm)
     cost = calibrate.scored_cost(errors, penalty)
     assert cost < calibrate.scored_cost(errors_motion, penalty_motion)
     assert cost < 0.7 * calibrate.friction_cost(rig("dry_friction"), targets)
-    # issue 15's checks but the frequency responses: the defaults meet them all (2026-11-26, docs/simulator.md, ninth
-    # look), the two plants before them miss binary_signal_4's std. (Their 8-norm costs are not ordered so: the cost
-    # scores one replay's FRF, 8.1 dB off on binary_signal_2 for the defaults, where the BLA the done-when checks
-    # use is 5.1 dB off, against 5.4 dB for stretched_sensor.)
+    # issue 15's checks but the frequency responses: the default plant meets them all (stuck_stretched, 2026-11-27;
+    # stick_slip did too, docs/simulator.md, ninth look), stretched_sensor and quiet_ageing miss binary_signal_4's
+    # std. The cost scores one replay's FRF rather than the BLA the done-when checks use: binary_signal_2 4.5 dB
+    # off for stuck_stretched (BLA 2.9 dB), 8.1 dB for stick_slip (BLA 5.1 dB), whose cost is 2.71 against 1.52.
     def unmet(errs: dict[str, float]) -> set[str]:
         return {k for k, v in errs.items() if v > 1.0 and k not in legacy and not k.startswith("frf")}
 

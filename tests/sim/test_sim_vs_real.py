@@ -249,7 +249,7 @@ def test_the_rigs_response_grows_with_the_range_in_every_input_class_and_the_tab
 def test_the_stuck_upper_plant_grades_the_uniform_class_by_range_and_leaves_small_noise_unexplained_as_the_rig():
     # docs/simulator.md, thirteenth look: on the rig the coherent output per A over 30-150 rad/s of white_noise_2,
     # _1, _4 is 0.0052, 0.0181, 0.0265 cm/A (x5.0), and below 30 rad/s white_noise_2's output is 0.0017 cm
-    # coherent against 0.0134 cm incoherent; the defaults' replays give x1.02 and mostly coherent output
+    # coherent against 0.0134 cm incoherent; stick_slip's replays give x1.02 and mostly coherent output
     from maglev.sim.plant import rig
 
     lev = rig("stuck_upper")
@@ -356,8 +356,8 @@ def test_white_noise_mode_within_20_percent(full_comparison):
 @pytest.mark.realdata
 @pytest.mark.parametrize("record", ["binary_signal_2", "binary_signal_3"])
 def test_fourth_order_models_show_both_lightly_damped_modes_on_rig_and_simulator(full_comparison, record):
-    # binary_signal_3's simulated slow mode is 67 rad/s, ζ 0.49 on stick_slip (61/0.49 on stretched_sensor, seeds
-    # 1-3; rig 76/0.42): inside, narrowly (with the linear sensor before 2026-11-26 it was 0.51, docs/simulator.md)
+    # binary_signal_3's simulated slow mode is 67 rad/s, ζ 0.47 on stuck_stretched and 0.49 on stick_slip (61/0.49 on
+    # stretched_sensor, seeds 1-3; rig 76/0.42): inside, narrowly (with the linear sensor before 2026-11-26 it was 0.51)
     for modes in full_comparison.fourth_order[record]:  # real, then simulated
         slow = [m for m in modes if 60 < m[0] < 120 and m[1] < 0.5]
         fast = [m for m in modes if 180 < m[0] < 260 and m[1] < 0.5]
