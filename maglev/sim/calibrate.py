@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,7 +82,7 @@ def fit_static(stair: IOData, base: Levitator) -> Levitator:
     of them, so a plant with it simulates a staircase a little further off: 0.0066 cm rms (noise-free) with
     stick_slip's Coulomb levels, where stick_slip's own static parameters, fitted to the simulated
     staircase, give 0.0051 cm (tolerance 0.0091; docs/simulator.md, ninth look); with stuck_stretched's
-    stuck upper bushing 0.074 cm (:func:`fit_simulated_static` then follows).
+    stuck upper bushing 0.074 cm, so for a plant that sticks ``main`` fits :func:`fit_simulated_static` instead.
     """
     u_bar, y_bar = stair_averages(stair)
     return _fit_static_params(base, lambda lev: lev.static_curve(u_bar), y_bar)
@@ -108,7 +109,8 @@ def fit_simulated_static(stair: IOData, *starts: Levitator, max_nfev: int = SIMU
     return _fit_static_params(base, simulated, y_bar, max_nfev=max_nfev, diff_step=1e-3)
 
 
-def _fit_static_params(base: Levitator, predict, y_bar: np.ndarray, **options) -> Levitator:
+def _fit_static_params(base: Levitator, predict: Callable[[Levitator], np.ndarray], y_bar: np.ndarray,
+                       **options) -> Levitator:
     """Least squares of ``predict(plant) - y_bar`` over ``STATIC_PARAMS`` from ``base``'s values, within bounds
     that keep the coil law and the saturation physical (``options`` go to ``scipy.optimize.least_squares``)."""
     x0 = np.array([getattr(base.params, k) for k in STATIC_PARAMS])
@@ -393,9 +395,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="directory for PNG figures")
     parser.add_argument("--no-fit", action="store_true", help="compare the plant as it is, without refitting")
     parser.add_argument("--plant", choices=sorted(PLANTS), default=DEFAULT_PLANT,
-                        help=f"named parameter set to start from and compare (default: {DEFAULT_PLANT}, the default plant)")
+                        help=f"named parameter set to start from and compare (default: {DEFAULT_PLANT}, "
+                        "the default plant)")
     parser.add_argument("--seed", type=int, default=1,
-                        help="seed of the simulated records' noise (default 1, the seed the default plant was chosen on)")
+                        help="seed of the simulated records' noise (default 1, the seed the default plant was "
+                        "chosen on)")
     parser.add_argument("--friction-evals", type=int, default=0,
                         help="Nelder-Mead evaluations of the friction fit from the plant (≈ 2 s each; "
                         "default 0: a local polish changes no verdict, docs/simulator.md)")
