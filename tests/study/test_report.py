@@ -210,7 +210,9 @@ def test_every_simulated_run_logs_the_bla_distance_the_naive_baseline_and_the_si
             m = r.data.metrics
             for key in ("g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "val_fit_naive", "val_fit_sim"):
                 assert math.isfinite(m[key]), (r.info.run_name, key)
-            assert m["g_bla_err"] > 0 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
+            assert 0 < m["g_bla_err"] < 5 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
+            # where the input explains the output every model is within 1.5 BLA norms; on uniform_narrow OE(5)
+            # follows the wander 2.9 norms away (test below)
             if ds in RANKED_DATASETS:
                 assert m["g_bla_err"] < 1.5, r.info.run_name
 
