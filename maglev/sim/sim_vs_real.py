@@ -360,6 +360,14 @@ def _within(sim: Mode, real: Mode) -> bool:
     return all(abs(s / r - 1) <= MODE_TOLERANCE for s, r in zip(sim, real))
 
 
+def _std_within(real: float, sim: float) -> bool:
+    return 1 / STD_TOLERANCE <= sim / real <= STD_TOLERANCE
+
+
+def _ratio_within(real: float, sim: float) -> bool:
+    return abs(sim / real - 1) <= RATIO_TOLERANCE
+
+
 def _modes_text(modes: list[Mode]) -> str:
     return ", ".join(f"{w:.0f}/{z:.2f}" for w, z in modes) or "none"
 
@@ -498,6 +506,38 @@ class Comparison:
     def static_tolerance(self) -> float:
         return STATIC_NOISE_MULTIPLE * self.noise_real[0]
 
+    def verdicts(self) -> dict[str, bool]:
+        """Every check the table states a tolerance for -> whether it is within: the static curve, the rise time
+        (``RISE_TOLERANCE``), α* (equal), each identified mode, each output std and their ratio, ARMAX's two
+        modes and each frequency response, as far as this comparison holds them.  Why: the table's last line
+        counts them, so a refit's verdict is one line, not a search for "no" among a hundred."""
+        out = {"static curve": self.static_rms <= self.static_tolerance,
+               "rise time": abs(self.rise_sim / self.rise_real - 1) <= RISE_TOLERANCE,
+               "alpha*": self.alpha_sim == self.alpha_real}
+        out.update({f"mode {rec}": _within(sim, real) for rec, (real, sim) in self._mode_rows()})
+        out.update({f"std {rec}": _std_within(real, sim) for rec, (real, sim) in (self.stds or {}).items()})
+        if self.stds and "binary_signal_2" in self.stds and WHITE_RECORD in self.stds:
+            out["std ratio"] = _ratio_within(*self.std_ratio)
+        if self.armax:
+            real, sim = (two_modes(m) for m in self.armax)
+            errs = armax_errors(sim, real)
+            out.update({f"ARMAX {name} mode": _armax_within(errs, name) for name in ("slow", "fast")})
+        out.update({f"FRF {rec}": c.max_db <= FRF_TOLERANCE_DB for rec, c in (self.frf or {}).items()})
+        return out
+
+    def _mode_rows(self) -> list[tuple[str, tuple[Mode, Mode]]]:
+        """The identified modes' rows of the table: each record's dominant mode, then white_noise_4's second."""
+        rows = list(self.modes.items())
+        if self.fourth_order and WHITE_RECORD in self.fourth_order:
+            rows.append((f"{WHITE_RECORD}*", self.white_noise_mode))
+        return rows
+
+    def _verdict_line(self) -> str:
+        v = self.verdicts()
+        missed = [name for name, ok in v.items() if not ok]
+        return (f"Checks within their tolerances: {len(v) - len(missed)} of {len(v)}"
+                + (f"; not within: {', '.join(missed)}" if missed else ""))
+
     @property
     def white_noise_mode(self) -> tuple[Mode, Mode]:
         """(real, sim) least-damped OE(4,4,5) mode of ``white_noise_4`` (the ≈ 215 rad/s one)."""
@@ -546,10 +586,7 @@ class Comparison:
                   "", f"Dominant mode of OE{OE_ORDERS} (nb, nf, nk) models, trimmed {TRANSIENT_FRACTION:.0%}, "
                   "detrended; wn in rad/s of the 1 ms label",
                   f"{'record':>16} {'wn real':>8} {'wn sim':>8} {'err':>6} {'zeta real':>9} {'zeta sim':>9} {'err':>6}"]
-        rows = list(self.modes.items())
-        if self.fourth_order and WHITE_RECORD in self.fourth_order:
-            rows.append((f"{WHITE_RECORD}*", self.white_noise_mode))
-        for rec, ((wr, zr), (ws, zs)) in rows:
+        for rec, ((wr, zr), (ws, zs)) in self._mode_rows():
             ok = "yes" if _within((ws, zs), (wr, zr)) else "no"
             lines.append(f"{rec:>16} {wr:8.1f} {ws:8.1f} {ws / wr - 1:+6.0%} {zr:9.2f} {zs:9.2f} "
                          f"{zs / zr - 1:+6.0%}  within {MODE_TOLERANCE:.0%}: {ok}")
@@ -564,7 +601,7 @@ class Comparison:
                       f"{'record':>16} {'input':>18} {'real':>7} {'sim':>7} {'sim/real':>8} {'spread real':>11} "
                       f"{'sim':>5} {'level sim-real':>14}"]
             for rec, (sr, ss) in self.stds.items():
-                ok = "yes" if 1 / STD_TOLERANCE <= ss / sr <= STD_TOLERANCE else "no"
+                ok = "yes" if _std_within(sr, ss) else "no"
                 parts = (self.std_parts or {}).get(rec)
                 spread = (" ".join(f"{max(p) / min(p):5.2f}" for p in parts) if parts else f"{'':5} {'':5}")
                 level = (self.levels or {}).get(rec)
@@ -577,7 +614,7 @@ class Comparison:
                              f"spans {STD_TOLERANCE ** 2:.2f}x); level: mean reading, sim minus real")
             if "binary_signal_2" in self.stds and WHITE_RECORD in self.stds:
                 real, sim = self.std_ratio
-                ok = "yes" if abs(sim / real - 1) <= RATIO_TOLERANCE else "no"
+                ok = "yes" if _ratio_within(real, sim) else "no"
                 lines.append(f"  binary α .25 / white noise, both 1.5-4 A: real {real:.1f}x, sim {sim:.1f}x "
                              f"({sim / real - 1:+.0%}; within {RATIO_TOLERANCE:.0%}: {ok})")
             if self.hops:
@@ -634,6 +671,7 @@ class Comparison:
                              "halves): the rig's record, then the simulator's replay of its input")
                 for rec, (real, sim) in self.halves.items():
                     lines += [f"{rec:>16} " + _db_row(real) + "  real", f"{'':>16} " + _db_row(sim) + "  sim"]
+        lines += ["", self._verdict_line()]
         return "\n".join(lines)
 
 
@@ -718,6 +756,11 @@ def armax_errors(sim: tuple[Mode | None, Mode | None], real: tuple[Mode | None, 
     return out
 
 
+def _armax_within(errs: dict[str, float], name: str) -> bool:
+    """Whether ARMAX's ``name`` ("slow"/"fast") mode is found and within its tolerances (nan: missing, no)."""
+    return abs(errs[f"{name} wn"]) <= ARMAX_WN_TOLERANCE and abs(errs[f"{name} zeta"]) <= ARMAX_ZETA_TOLERANCE
+
+
 def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | None, Mode | None]) -> str:
     errs = armax_errors(sim, real)
     parts = []
@@ -726,6 +769,5 @@ def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | 
         if math.isnan(wn):
             parts.append(f"{name} mode missing")
         else:
-            ok = abs(wn) <= ARMAX_WN_TOLERANCE and abs(z) <= ARMAX_ZETA_TOLERANCE
-            parts.append(f"{name} wn {wn:+.0%} zeta {z:+.0%} ({'yes' if ok else 'no'})")
+            parts.append(f"{name} wn {wn:+.0%} zeta {z:+.0%} ({'yes' if _armax_within(errs, name) else 'no'})")
     return "; ".join(parts) + f" [tolerances {ARMAX_WN_TOLERANCE:.0%} / {ARMAX_ZETA_TOLERANCE:.0%}]"

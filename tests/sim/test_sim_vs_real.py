@@ -5,6 +5,7 @@ the numbers the lab computes on both; the real records are needed (skips otherwi
 """
 
 import os
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -591,3 +592,21 @@ def test_what_the_default_plant_gives_up_its_stair_steps_barely_overshoot(full_c
     # The lab reads the rise time from these steps, and that still holds (test_defaults_reproduce_the_real_records)
     real, sim = full_comparison.steps
     assert max(step.overshoot for step in sim) < 0.05 < max(step.overshoot for step in real)
+
+
+@needs_real
+@pytest.mark.realdata
+def test_the_table_ends_with_how_many_checks_are_within_and_names_those_that_are_not(full_comparison):
+    # every verdict the table prints (yes / no), plus the static curve, the rise time and α*, which it prints
+    # with their tolerances; on the default plant all 21 are within
+    verdicts = full_comparison.verdicts()
+    table = full_comparison.table()
+    printed = len(re.findall(r": (?:yes|no)\b|\((?:yes|no)\)", table))
+    assert len(verdicts) == printed + 3 == 3 + 5 + 7 + 1 + 2 + 3
+    assert all(verdicts.values()) and table.splitlines()[-1] == "Checks within their tolerances: 21 of 21"
+    # a record whose std leaves the band is named
+    real, _ = full_comparison.stds["white_noise_1"]
+    worse = replace(full_comparison, stds={**full_comparison.stds, "white_noise_1": (real, 1.3 * real)})
+    assert worse.verdicts()["std white_noise_1"] is False
+    assert worse.table().splitlines()[-1] == ("Checks within their tolerances: 20 of 21; not within: "
+                                             "std white_noise_1")
