@@ -235,7 +235,7 @@ def test_on_small_white_noise_the_wander_owns_the_validation_output_as_on_the_ri
     simulates the validation data at about 12 %, and every model below 25 %. There one validation record's FIT
     cannot rank the models' distance to the BLA (Spearman +0.52 on 2026-11-27: OE(5) simulated 16 %, above the
     ceiling, 2.9 times the BLA's norm away), so issue 12's rank check is made on the other two datasets
-    (README, "Is the best linear approximation the truth?"). stick_slip's ceiling here was 88 %."""
+    (README, "Is the best linear approximation the truth?"). quiet_ageing's ceiling here was 88 %."""
     store, _, _ = lab_sweep
     for r in model_runs(store)["uniform_narrow"]:
         m = r.data.metrics
