@@ -326,13 +326,15 @@ def _one_estimator(path: Path | None) -> contextlib.AbstractContextManager:
 
 
 def _save(path: Path, est: BLA) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """Write ``est`` to the disk cache; an unwritable cache directory only costs the next run the estimate."""
     meta = {"Ts": est.Ts, "averages": est.averages, "spec": asdict(est.spec),
             "preprocess": asdict(est.preprocess), "realisations": est.realisations,
             "distortion_variance": est.distortion_variance, "output_variance": est.output_variance}
     tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    np.savez(tmp, meta=json.dumps(meta), **{k: getattr(est, k) for k in _ARRAYS})
-    os.replace(tmp, path)
+    with contextlib.suppress(OSError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(tmp, meta=json.dumps(meta), **{k: getattr(est, k) for k in _ARRAYS})
+        os.replace(tmp, path)
 
 
 def _load(path: Path) -> BLA | None:
@@ -384,10 +386,7 @@ def bla(spec: ExperimentSpec, plant: Levitator | System | None = None, *, prepro
                 inputs = _inputs(spec, realisations)
                 est = _estimate(spec, inputs, _outputs_of(plant, spec.Ts, inputs), preprocess, segment_s)
                 if path is not None:
-                    try:
-                        _save(path, est)
-                    except OSError:  # an unwritable cache directory only costs the next run the estimate
-                        pass
+                    _save(path, est)
     if cache is not False:
         _MEMORY[key] = est
     return replace(est, spec=spec)
@@ -426,8 +425,7 @@ def blas(specs: list[ExperimentSpec], plant: Levitator | None = None, *, preproc
                 est = _estimate(spec, inputs[k], outputs[k * realisations:(k + 1) * realisations], preprocess,
                                 segment_s)
                 _MEMORY[key] = est  # bla() below returns it, without reading it back
-                with contextlib.suppress(OSError):  # an unwritable cache directory: kept in memory only
-                    _save(path, est)
+                _save(path, est)
     return [bla(spec, plant, preprocess=preprocess, realisations=realisations, segment_s=segment_s)
             for spec in specs]
 

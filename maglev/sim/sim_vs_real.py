@@ -399,6 +399,11 @@ class FrfComparison:
         return float(np.max(np.abs(d))) if d.size else math.nan
 
     @property
+    def within(self) -> bool:
+        """Whether :attr:`max_db` is within ``FRF_TOLERANCE_DB`` (issue 15's check; nan: no coherent bin, no)."""
+        return self.max_db <= FRF_TOLERANCE_DB
+
+    @property
     def rms_db(self) -> float:
         d = self.difference_db
         return float(np.sqrt(np.mean(d ** 2))) if d.size else math.nan
@@ -438,7 +443,7 @@ class FrfComparison:
     def text(self) -> str:
         w = self.real.w[self.band]
         span = f"{w.min():5.0f}-{w.max():4.0f}" if w.size else "    none"
-        ok = "yes" if self.max_db <= FRF_TOLERANCE_DB else "no"
+        ok = "yes" if self.within else "no"
         return (f"{self.record:>16} {span} {w.size:5d} {self.max_db:7.1f} {self.rms_db:7.1f} "
                 f"{self.real_error_db:9.1f} {self.exact_max_db():12.1f}   within {FRF_TOLERANCE_DB:g} dB: {ok}")
 
@@ -522,7 +527,7 @@ class Comparison:
             real, sim = (two_modes(m) for m in self.armax)
             errs = armax_errors(sim, real)
             out.update({f"ARMAX {name} mode": _armax_within(errs, name) for name in ("slow", "fast")})
-        out.update({f"FRF {rec}": c.max_db <= FRF_TOLERANCE_DB for rec, c in (self.frf or {}).items()})
+        out.update({f"FRF {rec}": c.within for rec, c in (self.frf or {}).items()})
         return out
 
     def _mode_rows(self) -> list[tuple[str, tuple[Mode, Mode]]]:
