@@ -21,7 +21,9 @@ from maglev.data import IOData
 from maglev.estimation import arx, oe
 from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.model import PolyModel
-from maglev.sim.plant import Levitator
+from maglev.sim.plant import PLANTS, Levitator, rig
+
+STICK_SLIP = PLANTS["stick_slip"]  # the plant these tests' numbers were measured on
 
 BINARY = ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=12.0)
 NARROW = ExperimentSpec("uniform", 1.75, 2.5, duration_s=12.0)
@@ -116,13 +118,13 @@ def test_one_record_frequency_response_error_matches_its_coherence_based_standar
 @pytest.fixture(scope="module")
 def binary_bla(tmp_path_factory) -> BLA:
     """The default levitator's BLA for binary α .25 1.5-4 A, 12 s, trimmed, detrended, decimated by 2."""
-    return bla(BINARY, Levitator(zero_at_10=True), preprocess=DEC2, realisations=6, segment_s=SEG,
+    return bla(BINARY, rig("stick_slip"), preprocess=DEC2, realisations=6, segment_s=SEG,
                cache=tmp_path_factory.mktemp("bla"))
 
 
 def test_levitator_bla_depends_on_the_input_class(binary_bla):
     big = binary_bla
-    small = bla(NARROW, Levitator(zero_at_10=True), preprocess=DEC2, realisations=3, segment_s=SEG, cache=False)
+    small = bla(NARROW, rig("stick_slip"), preprocess=DEC2, realisations=3, segment_s=SEG, cache=False)
     assert big.Ts == small.Ts == 2e-3
     band = (big.w > 30) & (big.w < 300)  # rad/s: around both resonances
     z = np.abs(big.G - small.G)[band] / np.hypot(big.std, small.std)[band]
@@ -134,7 +136,7 @@ def test_levitator_bla_depends_on_the_input_class(binary_bla):
 
 
 def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_distortion(binary_bla):
-    lev, est = Levitator(zero_at_10=True), binary_bla
+    lev, est = rig("stick_slip"), binary_bla
     records = []
     for seed in range(4):  # held out: seeds the estimate did not use
         u = input_signal(replace(BINARY, seed=seed))
@@ -157,7 +159,7 @@ def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_
 
 
 def test_cache_round_trip_and_key(tmp_path, monkeypatch):
-    lev = Levitator(zero_at_10=True)
+    lev = rig("stick_slip")
     spec = replace(NARROW, duration_s=6.0)
     first = bla(spec, lev, preprocess=DEC2, realisations=2, segment_s=SEG, cache=tmp_path)
     assert len(list(tmp_path.glob("*.npz"))) == 1
@@ -239,7 +241,7 @@ def test_blas_of_several_classes_are_the_estimates_bla_makes_one_class_at_a_time
     another length alone: every array and number equal to bla's own, class by class, and on disk."""
     specs = [replace(BINARY, duration_s=0.8), replace(NARROW, duration_s=0.8), replace(NARROW, duration_s=1.0)]
     settings = dict(preprocess=Preprocess(trim=200), realisations=bla_mod.BATCH_FROM, segment_s=0.25)
-    lev = Levitator()
+    lev = Levitator(STICK_SLIP)
     batches = []
     simulate_batch = Levitator.simulate_batch
     monkeypatch.setattr(Levitator, "simulate_batch", lambda self, U, **kw: batches.append(len(U)) or

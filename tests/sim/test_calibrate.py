@@ -9,7 +9,7 @@ import pytest
 
 from maglev import refdata
 from maglev.sim import calibrate, sim_vs_real
-from maglev.sim.plant import Levitator, rig
+from maglev.sim.plant import rig
 from maglev.sim.sim_vs_real import stair_averages
 
 REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
@@ -148,7 +148,7 @@ def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
 @pytest.mark.realdata
 def test_friction_errors_are_the_printed_comparison_scaled_by_its_tolerances():
     # the fit scores exactly what `python -m maglev.sim.calibrate` prints and the done-when checks
-    lev = Levitator(zero_at_10=True).with_params(coulomb_upper=0.04)  # not the defaults
+    lev = rig("stick_slip").with_params(coulomb_upper=0.04)  # not the defaults
     errors, _ = calibrate.friction_errors(lev, calibrate.friction_targets(REAL))
     cmp = sim_vs_real.compare(lev, REAL, records=("binary_signal_3",), fourth_order_records=(), frf_records=())
     (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
