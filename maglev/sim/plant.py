@@ -53,6 +53,7 @@ import numpy as np
 from scipy import optimize, signal
 
 from maglev.data import IOData
+from maglev.sim.forces import force_slopes, friction, magnet_forces, stribeck_level
 
 __all__ = ["LevitatorParams", "Equilibrium", "LinearModel", "Levitator", "PLANTS", "DEFAULT_PLANT", "rig",
            "plant_file", "U_MIN", "U_MAX"]
@@ -288,33 +289,21 @@ class Levitator:
     # ------------------------------------------------------------------ statics
     def _upper_height(self, current: float, z: float) -> float:
         """Height h balancing the upper magnet above a lower magnet at z (ignoring the top stop)."""
-        p = self.params
-        w = p.m * p.g
-
-        def f(h: float) -> float:
-            return p.c / (h - z + p.d) ** 4 - p.kappa * current / (p.a * (h + p.b) ** p.n_coil) - w
-
-        return optimize.brentq(f, z, z + 1e3, xtol=1e-12)
+        forces = magnet_forces(self.params)
+        return optimize.brentq(lambda h: forces(current, z, h)[1], z, z + 1e3, xtol=1e-12)
 
     def equilibrium(self, u: float) -> Equilibrium:
-        """Solve the static force balance directly for constant command ``u`` [A]."""
+        """Solve the static force balance (:func:`~maglev.sim.forces.magnet_forces`) for constant command ``u`` [A]."""
         u_val = float(_checked_command(u, "u"))
         p = self.params
         current = float(self.current(u_val))
-        w = p.m * p.g
-
-        def coil(z: float) -> float:
-            return current / (p.a * (z + p.b) ** p.n_coil)
-
-        def repulsion(gap: float) -> float:
-            return p.c / (gap + p.d) ** 4
-
+        forces = magnet_forces(p)
         h0 = self._upper_height(current, 0.0)
-        if coil(0.0) <= repulsion(h0) + w:  # lower magnet stays seated
+        if forces(current, 0.0, h0)[0] <= 0.0:  # the coil cannot lift the lower magnet off its seat
             z, h, seated = 0.0, h0, True
         else:
             def lower(z_: float) -> float:
-                return coil(z_) - repulsion(self._upper_height(current, z_) - z_) - w
+                return forces(current, z_, self._upper_height(current, z_))[0]
 
             z_hi = 1.0
             while lower(z_hi) > 0:
@@ -325,8 +314,7 @@ class Levitator:
         if at_top:
             h = p.h_top
             if not seated:
-                z = optimize.brentq(lambda z_: coil(z_) - repulsion(p.h_top - z_) - w, 0.0, p.h_top,
-                                    xtol=1e-12)
+                z = optimize.brentq(lambda z_: forces(current, z_, p.h_top)[0], 0.0, p.h_top, xtol=1e-12)
         return Equilibrium(u=u_val, current=current, z=z, h=h, y=float(self.reading(h)),
                            lower_seated=seated, upper_at_top=at_top)
 
@@ -353,39 +341,35 @@ class Levitator:
         eq = self.equilibrium(u0)
         p = self.params
         k = _CM / p.m
-        cur, z, h = eq.current, eq.z, eq.h
-        gap = h - z
-        dfm = -4.0 * p.c / (gap + p.d) ** 5  # dFm/dgap
-        dfa_dh = -p.n_coil * p.kappa * cur / (p.a * (h + p.b) ** (p.n_coil + 1))
-        dfa_di = p.kappa / (p.a * (h + p.b) ** p.n_coil)
-        dfc_dz = -p.n_coil * cur / (p.a * (z + p.b) ** (p.n_coil + 1))
-        dfc_di = 1.0 / (p.a * (z + p.b) ** p.n_coil)
-        dy_dh = self.reading_slope(h)
+        # d(force on lower, on upper) / d(current, z, h), exact derivatives of the integrators' force law
+        (dl_di, dl_dz, dl_dh), (du_di, du_dz, du_dh) = force_slopes(p, eq.current, eq.z, eq.h)
+        dy_dh = self.reading_slope(eq.h)
         gain_u = 0.0 if (self.zero_at_10 and eq.u >= U_MAX) or not 0.0 < eq.u < p.i_sat else 1.0
         gl, gu = p.gamma_lower / p.m, p.gamma_upper / p.m
         if dry_friction:  # at rest: a quiet input and contacts aged without bound
             gl += (p.gamma_quiet_lower + p.gamma_aged_lower) / p.m
             gu += (p.gamma_quiet_upper + p.gamma_aged_upper) / p.m
-            if p.v_creep > 0:
-                gl += _CM * (p.coulomb_lower + p.stiction_lower) / (p.v_creep * p.m)
-                gu += _CM * (p.coulomb_upper + p.stiction_upper) / (p.v_creep * p.m)
+            if p.v_creep > 0:  # the smooth dry friction's slope at rest, (coulomb + stiction) / v_creep
+                ivs2, ivc = 1.0 / p.v_stribeck ** 2, 1.0 / p.v_creep
+                gl += k * friction(0.0, 0.0, p.coulomb_lower, p.stiction_lower, ivs2, ivc)[1]
+                gu += k * friction(0.0, 0.0, p.coulomb_upper, p.stiction_upper, ivs2, ivc)[1]
         if eq.upper_at_top:
             # the upper magnet is pressed against its stop: the reading cannot move
             A = np.array([[-1.0]])
             B = np.zeros((1, 1))
             C = np.zeros((1, 1))
         elif eq.lower_seated:
-            A = np.array([[0.0, 1.0], [k * (-dfa_dh + dfm), -gu]])
-            B = np.array([[0.0], [-k * dfa_di * gain_u]])
+            A = np.array([[0.0, 1.0], [k * du_dh, -gu]])
+            B = np.array([[0.0], [k * du_di * gain_u]])
             C = np.array([[dy_dh, 0.0]])
         else:
             A = np.array([
                 [0.0, 0.0, 1.0, 0.0],
                 [0.0, 0.0, 0.0, 1.0],
-                [k * (dfc_dz + dfm), -k * dfm, -gl, 0.0],
-                [-k * dfm, k * (-dfa_dh + dfm), 0.0, -gu],
+                [k * dl_dz, k * dl_dh, -gl, 0.0],
+                [k * du_dz, k * du_dh, 0.0, -gu],
             ])
-            B = np.array([[0.0], [0.0], [k * dfc_di * gain_u], [-k * dfa_di * gain_u]])
+            B = np.array([[0.0], [0.0], [k * dl_di * gain_u], [k * du_di * gain_u]])
             C = np.array([[0.0, dy_dh, 0.0, 0.0]])
         scale = self.time_scale()
         sys_c = ct.ss(A * scale, B * scale, C, np.zeros((1, 1)))
@@ -566,23 +550,6 @@ def rig(plant: str = DEFAULT_PLANT) -> Levitator:
     return Levitator(PLANTS[plant], zero_at_10=True)
 
 
-def _friction(v: float, fc: float, fs: float, vs: float, vc: float, gamma: float) -> tuple[float, float]:
-    """Friction force [N] opposing velocity ``v`` [cm/s] and its slope dF/dv [N s/cm].
-
-    ``F(v) = (fc + fs exp(-(v/vs)^2)) tanh(v/vc) + gamma v / 100`` (gamma in N s/m):
-    Coulomb level ``fc``, a Stribeck peak ``fs`` above it at low speed, a tanh sign of
-    width ``vc`` (the creep/pre-sliding regime: at |v| << vc the dry friction acts like
-    a viscous damping (fc + fs) / vc) and viscous friction.  Reference form of the law
-    that the integrator inlines (and the tests check).
-    """
-    e = math.exp(-(v / vs) ** 2)
-    th = math.tanh(v / vc)
-    level = fc + fs * e
-    force = level * th + gamma * v / _CM
-    slope = level * (1.0 - th * th) / vc - 2.0 * fs * e * v / (vs * vs) * th + gamma / _CM
-    return force, slope
-
-
 _REST_AGE = 10.0  # s (physical): contact age of both bushings when a record starts (at rest since long)
 
 
@@ -672,29 +639,40 @@ class _Damping:
         self.sample, self.substep, self.ages = sample, substep, ages
 
 
-def _velocity_step(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool):
+def _velocity_step(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool, batch: bool = False):
     """The velocity update of one magnet over one substep, for its dry-friction parameters.
 
-    ``hk`` is the substep times the force-to-acceleration factor; the returned function
-    maps (velocity, external force, viscous damping) to the new velocity (see :func:`_integrate`).
+    ``hk`` is the substep times the force-to-acceleration factor; the returned function maps (velocity,
+    external force, viscous damping) to the new velocity (see :func:`_integrate`), on floats or, with
+    ``batch``, on arrays with one element per record.  The friction is :mod:`maglev.sim.forces`' law.
     """
-    exp, tanh = math.exp, math.tanh
+    exp, tanh = (np.exp, np.tanh) if batch else (math.exp, math.tanh)
     if fc + fs <= 0.0:  # viscous only: implicit Euler
         return lambda v, a, gamma: (v + hk * a) / (1.0 + hk * gamma)
-    if smooth:
-        def step(v: float, a: float, gamma: float) -> float:
-            e = exp(-v * v * ivs2) if fs else 0.0
-            th = tanh(v * ivc)
-            level = fc + fs * e
-            slope = level * (1.0 - th * th) * ivc + gamma - 2.0 * fs * e * v * ivs2 * th
-            return v + hk * (a - level * th - gamma * v) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
+    if smooth:  # one Newton step of backward Euler about the old velocity, the negative slope left explicit
+        if batch:
+            def step(v, a, gamma):
+                force, slope = friction(v, gamma, fc, fs, ivs2, ivc, exp, tanh)
+                return v + hk * (a - force - gamma * v) / (1.0 + hk * np.maximum(slope, 0.0))
+        else:
+            def step(v, a, gamma):
+                force, slope = friction(v, gamma, fc, fs, ivs2, ivc, exp, tanh)
+                return v + hk * (a - force - gamma * v) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
         return step
 
-    def stick_slip(v: float, a: float, gamma: float) -> float:
-        damp = 1.0 + hk * gamma
-        band = hk * (fc + fs * exp(-v * v * ivs2)) / damp
-        v = (v + hk * a) / damp
-        return v - band if v > band else (v + band if v < -band else 0.0)
+    # set-valued: the magnet sticks when the trial velocity lies within the band the friction can cancel
+    if batch:
+        def stick_slip(v, a, gamma):
+            damp = 1.0 + hk * gamma
+            band = hk * (stribeck_level(v, fc, fs, ivs2, exp) if fs else fc) / damp  # the same numbers
+            v = (v + hk * a) / damp
+            return v - np.clip(v, -band, band)  # v - band above the band, v + band below it, 0.0 within
+    else:
+        def stick_slip(v, a, gamma):
+            damp = 1.0 + hk * gamma
+            band = hk * stribeck_level(v, fc, fs, ivs2, exp) / damp
+            v = (v + hk * a) / damp
+            return v - band if v > band else (v + band if v < -band else 0.0)
     return stick_slip
 
 
@@ -702,32 +680,22 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
                z0: float, h0: float) -> tuple[np.ndarray, np.ndarray]:
     """Semi-implicit Euler on plain floats: (linearly) implicit friction, explicit forces.
 
-    Velocities are updated first with the forces at the current positions and the
-    friction treated implicitly, then positions with the new velocities; the seat
-    (z >= 0) and the top stop (h <= h_top) are inelastic.  The viscous damping varies
-    from substep to substep (:class:`_Damping`) and is implicit.  With ``v_creep > 0`` the
-    optional dry friction (Coulomb + Stribeck, tanh-regularised) is linearised about the old
-    velocity, ``v' = v + hs (a_ext - k F(v)) / (1 + hs k max(F'(v), 0))`` - one Newton
-    step of backward Euler, stable however steep the tanh is (the velocity-weakening
-    part, whose slope is negative, stays explicit).  With ``v_creep = 0`` the dry
-    friction is set-valued (exact stick-slip): a magnet sticks when the trial velocity
-    lies within the band the friction level at the old speed can cancel in one step.
-    Returns the heights at the start of every sample (sample-then-actuate, as the lab's
-    logging loop and the ZOH model assume).
+    Velocities are updated first with the forces at the current positions (:func:`~maglev.sim.forces.magnet_forces`)
+    and the friction treated implicitly, then positions with the new velocities; the seat (z >= 0) and the top
+    stop (h <= h_top) are inelastic.  The viscous damping varies from substep to substep (:class:`_Damping`)
+    and is implicit.  With ``v_creep > 0`` the dry friction (Coulomb + Stribeck, tanh-regularised,
+    :func:`~maglev.sim.forces.friction`) is linearised about the old velocity,
+    ``v' = v + hs (a_ext - k F(v)) / (1 + hs k max(F'(v), 0))`` - one Newton step of backward Euler, stable however
+    steep the tanh is (the velocity-weakening part, whose slope is negative, stays explicit).  With
+    ``v_creep = 0`` the dry friction is set-valued (exact stick-slip): a magnet sticks when the trial velocity
+    lies within the band the friction level at the old speed can cancel in one step.  Returns the heights at
+    the start of every sample (sample-then-actuate, as the lab's logging loop and the ZOH model assume).
     """
     hs = dt / substeps
-    k = _CM / p.m
-    w = p.m * p.g
-    ia = 1.0 / p.a
-    n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
-    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
-    vc = p.v_creep
-    smooth = vc > 0.0
-    ivc = 1.0 / vc if smooth else 0.0
-    hk = hs * k
+    hk = hs * (_CM / p.m)  # as the force-to-acceleration factor k = 100 / m, times the substep
     top = p.h_top
-    step_l = _velocity_step(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, smooth)
-    step_u = _velocity_step(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, smooth)
+    step_l, step_u = _velocity_steps(p, hk, batch=False)
+    forces = magnet_forces(p)
     cur_list = cur.tolist()
     damping = _Damping(p, hs, dt, cur_list[0])
     sample, substep = damping.sample, damping.substep
@@ -737,14 +705,11 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     for i, (i_c, f_n) in enumerate(zip(cur_list, force.tolist())):
         zs[i] = z  # the reading is taken at the start of the sample, then the new current acts
         hs_out[i] = h
-        ci = i_c * ia
         sample(i_c)
         for _ in range(substeps):
-            fm = c / (h - z + d) ** 4
-            az = ci / (z + b) ** n - fm - w  # N, external force on the lower magnet
-            ah = fm - kap * ci / (h + b) ** n - w + f_n  # N, on the upper magnet
+            az, ah = forces(i_c, z, h)  # N, external force on the lower and the upper magnet
             vz = step_l(vz, az, damping.lower)
-            vh = step_u(vh, ah, damping.upper)
+            vh = step_u(vh, ah + f_n, damping.upper)
             substep(vz, vh)
             z += hs * vz
             h += hs * vh
@@ -755,25 +720,13 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     return np.array(zs), np.array(hs_out)
 
 
-def _velocity_step_batch(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool):
-    """:func:`_velocity_step` on arrays of velocities, forces and dampings (one element per record)."""
-    if fc + fs <= 0.0:
-        return lambda v, a, gamma: (v + hk * a) / (1.0 + hk * gamma)
-    if smooth:
-        def step(v: np.ndarray, a: np.ndarray, gamma: np.ndarray) -> np.ndarray:
-            e = np.exp(-v * v * ivs2) if fs else 0.0
-            th = np.tanh(v * ivc)
-            level = fc + fs * e
-            slope = level * (1.0 - th * th) * ivc + gamma - 2.0 * fs * e * v * ivs2 * th
-            return v + hk * (a - level * th - gamma * v) / (1.0 + hk * np.maximum(slope, 0.0))
-        return step
-
-    def stick_slip(v: np.ndarray, a: np.ndarray, gamma: np.ndarray) -> np.ndarray:
-        damp = 1.0 + hk * gamma
-        band = hk * (fc + fs * np.exp(-v * v * ivs2)) / damp if fs else hk * fc / damp  # the same numbers
-        v = (v + hk * a) / damp
-        return v - np.clip(v, -band, band)  # v - band above the band, v + band below it, 0.0 within
-    return stick_slip
+def _velocity_steps(p: LevitatorParams, hk: float, batch: bool):
+    """The lower and the upper magnet's :func:`_velocity_step` for the plant ``p``."""
+    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
+    smooth = p.v_creep > 0.0
+    ivc = 1.0 / p.v_creep if smooth else 0.0
+    return (_velocity_step(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, smooth, batch),
+            _velocity_step(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, smooth, batch))
 
 
 def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: int, z0: float,
@@ -782,15 +735,9 @@ def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: i
     the upper magnet's heights (records x samples).  Each substep costs a few dozen numpy
     operations on the rows, so a batch of a few hundred records runs ≈ 10x faster than a loop."""
     hs = dt / substeps
-    k = _CM / p.m
-    w = p.m * p.g
-    ia = 1.0 / p.a
-    n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
-    ivc = 1.0 / p.v_creep if p.v_creep > 0.0 else 0.0
-    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
-    hk = hs * k
-    step_l = _velocity_step_batch(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, p.v_creep > 0.0)
-    step_u = _velocity_step_batch(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, p.v_creep > 0.0)
+    hk = hs * (_CM / p.m)  # as the force-to-acceleration factor k = 100 / m, times the substep
+    step_l, step_u = _velocity_steps(p, hk, batch=True)
+    forces = magnet_forces(p)
     rows = cur.shape[0]
     z, h = np.full(rows, z0), np.full(rows, h0)
     vz, vh = np.zeros(rows), np.zeros(rows)
@@ -798,12 +745,12 @@ def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: i
     out = np.empty_like(cur)
     for i in range(cur.shape[1]):
         out[:, i] = h
-        ci = cur[:, i] * ia
-        damping.sample(cur[:, i])
+        i_c = cur[:, i]
+        damping.sample(i_c)
         for _ in range(substeps):
-            fm = c / (h - z + d) ** 4
-            vz = step_l(vz, ci / (z + b) ** n - fm - w, damping.lower)
-            vh = step_u(vh, fm - kap * ci / (h + b) ** n - w, damping.upper)
+            az, ah = forces(i_c, z, h)
+            vz = step_l(vz, az, damping.lower)
+            vh = step_u(vh, ah, damping.upper)
             damping.substep(vz, vh)
             z = z + hs * vz
             h = h + hs * vh

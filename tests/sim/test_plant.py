@@ -11,7 +11,8 @@ from scipy import signal
 from maglev.estimation import arx
 from maglev.sim import plant as plant_mod
 from maglev.sim.plant import (_REST_AGE, DEFAULT_PLANT, PLANTS, WANDER_STEP_REF, Levitator, LevitatorParams, _Damping,
-                              _friction, plant_file, rig)
+                              plant_file, rig)
+from maglev.sim.forces import force_slopes, friction, magnet_forces, stribeck_level
 from maglev.lab.signals import random_binary
 
 STICK_SLIP = PLANTS["stick_slip"]  # the plant these tests' numbers were measured on (light Coulomb friction)
@@ -199,19 +200,51 @@ def test_linearisation_matches_small_signal_identification(viscous_only):
 
 
 def test_friction_law_levels_and_slopes():
-    fc, fs, vs, vc, gamma = 0.05, 0.03, 2.0, 0.4, 1.5
-    force0, slope0 = _friction(0.0, fc, fs, vs, vc, gamma)
+    fc, fs, vs, vc, gamma = 0.05, 0.03, 2.0, 0.4, 0.015  # gamma in N s/cm
+
+    def law(v: float) -> tuple[float, float]:
+        return friction(v, gamma, fc, fs, 1 / vs ** 2, 1 / vc)
+
+    force0, slope0 = law(0.0)
     assert force0 == 0.0
-    assert slope0 == pytest.approx((fc + fs) / vc + gamma / 100)  # creep regime: heavy damping at rest
-    fast, _ = _friction(50.0, fc, fs, vs, vc, gamma)
-    assert fast == pytest.approx(fc + gamma * 50.0 / 100, rel=1e-9)  # Stribeck peak gone: Coulomb + viscous
-    peak = max(_friction(v, fc, fs, vs, vc, gamma)[0] - gamma * v / 100 for v in np.linspace(0.01, 10, 500))
+    assert slope0 == pytest.approx((fc + fs) / vc + gamma)  # creep regime: heavy damping at rest
+    fast, _ = law(50.0)
+    assert fast == pytest.approx(fc, rel=1e-9)  # Stribeck peak gone: the Coulomb level
+    assert stribeck_level(50.0, fc, fs, 1 / vs ** 2) == pytest.approx(fc) and stribeck_level(0.0, fc, fs, 1.0) == fc + fs
+    peak = max(law(v)[0] for v in np.linspace(0.01, 10, 500))
     assert fc < peak < fc + fs  # velocity weakening: the dry part peaks above the Coulomb level
     for v in (-3.0, 0.3, 1.1, 4.0):
-        f, s = _friction(v, fc, fs, vs, vc, gamma)
-        assert _friction(-v, fc, fs, vs, vc, gamma)[0] == pytest.approx(-f)
-        num = (_friction(v + 1e-6, fc, fs, vs, vc, gamma)[0] - _friction(v - 1e-6, fc, fs, vs, vc, gamma)[0]) / 2e-6
+        f, s = law(v)
+        assert law(-v)[0] == pytest.approx(-f)
+        num = (law(v + 1e-6)[0] - law(v - 1e-6)[0]) / 2e-6 + gamma  # the slope includes the viscous part
         assert s == pytest.approx(num, rel=1e-5, abs=1e-9)
+    # the batch integrator's arrays give the scalar integrator's numbers (numpy's tanh to rounding)
+    v = np.array([-3.0, 0.3, 1.1])
+    forces, slopes = friction(v, gamma, fc, fs, 1 / vs ** 2, 1 / vc, np.exp, np.tanh)
+    assert forces == pytest.approx([law(x)[0] for x in v], rel=1e-14)
+    assert slopes == pytest.approx([law(x)[1] for x in v], rel=1e-14)
+
+
+@pytest.mark.parametrize("name", ["stuck_stretched", "dry_friction"])
+def test_the_force_law_is_coil_push_and_pull_repulsion_and_weight_and_linearize_its_exact_slopes(name):
+    """One force law for the equilibrium, linearize and both integrators: written out here from the physics
+    (``_forces``), on floats and arrays alike, with complex-step slopes equal to the hand-derived ones."""
+    p = PLANTS[name]
+    forces = magnet_forces(p)
+    for current, z, h in ((2.5, 0.4, 7.9), (0.0, 0.0, 6.0), (3.9, 1.2, 9.5)):
+        assert forces(current, z, h) == pytest.approx(_forces(p, current, z, h), rel=1e-14)
+        gap = h - z
+        dfm = -4.0 * p.c / (gap + p.d) ** 5
+        dfc_dz = -p.n_coil * current / (p.a * (z + p.b) ** (p.n_coil + 1))
+        dfa_dh = -p.n_coil * p.kappa * current / (p.a * (h + p.b) ** (p.n_coil + 1))
+        by_hand = [[1 / (p.a * (z + p.b) ** p.n_coil), dfc_dz + dfm, -dfm],
+                   [-p.kappa / (p.a * (h + p.b) ** p.n_coil), -dfm, dfm - dfa_dh]]
+        np.testing.assert_allclose(force_slopes(p, current, z, h), by_hand, rtol=1e-12, atol=1e-15)
+    lower, upper = forces(np.array([2.5, 3.9]), np.array([0.4, 1.2]), np.array([7.9, 9.5]))
+    assert lower == pytest.approx([forces(2.5, 0.4, 7.9)[0], forces(3.9, 1.2, 9.5)[0]], rel=1e-14)
+    assert upper == pytest.approx([forces(2.5, 0.4, 7.9)[1], forces(3.9, 1.2, 9.5)[1]], rel=1e-14)
+    eq = Levitator(p).equilibrium(2.75)  # the equilibrium is where this law balances
+    assert abs(forces(eq.current, eq.z, eq.h)[1]) < 1e-9
 
 
 def test_friction_makes_the_gain_amplitude_dependent():
