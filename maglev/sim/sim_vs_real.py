@@ -21,7 +21,7 @@ order shows both on every record:
   plateaus, pairs faster than 1000 rad/s sit at the decimated records' Nyquist frequency;
   both are skipped) is the 215 rad/s one.
 
-The issue-15 checks (``ARMAX_ORDERS``, ``FRF_CLASSES``):
+The ARMAX and frequency-response measurements (``ARMAX_ORDERS``, ``FRF_CLASSES``):
 
 * ARMAX [4 4 4 1] on ``binary_signal_2`` at the labelled 1 ms, as the 2022 group
   identified it (whole record mean removed, first half): the rig shows two lightly
@@ -55,6 +55,9 @@ the same band), so the working point can be told apart from the range: on the ri
 working point as the simulator's does, and the damping grows (the first step after lift-off overshoots 51 %,
 the steps above 3 A 2-4 %).
 
+Which of these numbers are checks, with which tolerances and why, is declared once in
+:mod:`maglev.sim.checks`; :meth:`Comparison.verdicts` and the table's verdicts read it.
+
 Frequencies are in rad/s of the 1 ms label the records carry.
 """
 
@@ -70,7 +73,10 @@ from scipy import signal
 from maglev.lab.averages import get_stationary_averages
 from maglev.lab.input_design import choose_alpha, output_spectrum
 from maglev.lab.sampling import held_steps, rise_time
-from maglev.sim import bla as bla_mod
+from maglev.sim import bla as bla_mod, checks
+from maglev.sim.checks import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_TOLERANCE_DB,
+                               MODE_TOLERANCE, POLE_RECORDS, RATIO_TOLERANCE, STATIC_NOISE_MULTIPLE,
+                               STD_TOLERANCE, WHITE_RECORD, Mode)
 from maglev.data import IOData
 from maglev.estimation import armax, oe
 from maglev.sim.labdata import ExperimentSpec
@@ -86,14 +92,9 @@ __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dom
 STAIR_LEVELS = 21
 STAIR_TAIL = 50.0
 TRANSIENT_FRACTION = 0.25  # start-up transient dropped from identification records
-POLE_RECORDS = ("binary_signal_3", "binary_signal_4", "binary_signal_2", "binary_signal_1")
 OE_ORDERS = (2, 2, 3)  # nb, nf, nk of the models whose dominant mode is compared
 FOURTH_ORDERS = (4, 4, 5)  # nb, nf, nk of the models that resolve both modes (after decimation)
 FOURTH_DECIMATION = 2
-WHITE_RECORD = "white_noise_4"  # white noise over the working region 1.5-4 A
-STATIC_NOISE_MULTIPLE = 5.0  # static-curve tolerance: rms <= this many noise std
-MODE_TOLERANCE = 0.2  # relative error of ωn and ζ counted as a match
-RISE_TOLERANCE = 0.25  # relative error of the rise time counted as agreement (same decimation advice)
 SLOWEST_RESONANCE = 30.0  # rad/s: slower identified pairs are drift or stick plateaus, not resonances
 # rad/s: faster pairs sit at the Nyquist frequency of the records decimated by FOURTH_DECIMATION (1571 rad/s), the
 # noise's sample-to-sample alternation, not a resonance (the rig's modes lie near 75-90 and 215 rad/s)
@@ -103,15 +104,11 @@ RECORD_INPUTS = {"binary_signal_1": "bin α.25 1.5-3 A", "binary_signal_2": "bin
                  "binary_signal_3": "bin α.5 1.5-4 A", "binary_signal_4": "bin α.5 1.5-3 A",
                  "white_noise_1": "U(1.5, 3) A", "white_noise_2": "U(1.75, 2.5) A",
                  "white_noise_4": "U(1.5, 4) A"}
-STD_RECORDS = tuple(RECORD_INPUTS)
-# issue 15: the 2022 group's ARMAX on the α .25 1.5-4 A record, and the frequency-domain comparison
+STD_RECORDS = checks.STD_RECORDS
+# the 2022 group's ARMAX on the α .25 1.5-4 A record, and the frequency-domain comparison
 ARMAX_ORDERS = (4, 4, 4, 1)  # na, nb, nc, nk, at the labelled 1 ms
-ARMAX_RECORD = "binary_signal_2"
 SLOW_BAND, FAST_BAND = (40.0, 150.0), (150.0, 400.0)  # rad/s: where the two lightly damped modes lie
 LIGHTLY_DAMPED = 0.6  # ζ below which a pair counts as a lightly damped mode
-ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE = 0.15, 0.30
-STD_TOLERANCE = 1.25  # output stds within [1/1.25, 1.25] of the real ones
-RATIO_TOLERANCE = 0.25  # binary α .25 / white-noise std ratio within 25 % of the rig's
 FRF_CLASSES = {  # real record -> its input class (the simulator's BLA is estimated for this class)
     "binary_signal_2": ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=20.0),
     "binary_signal_3": ExperimentSpec("binary", 1.5, 4.0, alpha=0.5, duration_s=20.0),
@@ -120,7 +117,6 @@ FRF_CLASSES = {  # real record -> its input class (the simulator's BLA is estima
 FRF_PREPROCESS = bla_mod.Preprocess(trim=2000, detrend=True, decimate=1)
 FRF_SEGMENT_S = 1.0  # s per Welch segment: 17+ averages on a 20 s record, 6.3 rad/s resolution
 FRF_COHERENCE = 0.5  # the real estimate's coherence above which the magnitudes are compared
-FRF_TOLERANCE_DB = 3.0
 FRF_REALISATIONS = 8
 EXACT_DRAWS = 2000  # Monte Carlo draws of FrfComparison.exact_max_db
 # rad/s of the 1 ms label, for the FRF gap by band: below the slow mode (≈ 75-90 rad/s), around it, between the
@@ -143,7 +139,6 @@ STARTUP_RECORDS = ("binary_signal_9", "binary_signal_10")  # 3 A, 4 A (the regul
 STARTUP_SAMPLES = 1000  # the throw's peak is sought in the first ones
 STAIR_STEP_RANGE = (1.5, 4.0)  # A: the staircase's levels inside the working region (rise time, overshoot)
 
-Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 
 
 # ---------------------------------------------------------------------- the lab's numbers
@@ -356,18 +351,6 @@ def least_damped(modes: list[Mode], slowest: float = SLOWEST_RESONANCE, fastest:
     return min(resonances, key=lambda m: m[1]) if resonances else (math.nan, math.nan)
 
 
-def _within(sim: Mode, real: Mode) -> bool:
-    return all(abs(s / r - 1) <= MODE_TOLERANCE for s, r in zip(sim, real))
-
-
-def _std_within(real: float, sim: float) -> bool:
-    return 1 / STD_TOLERANCE <= sim / real <= STD_TOLERANCE
-
-
-def _ratio_within(real: float, sim: float) -> bool:
-    return abs(sim / real - 1) <= RATIO_TOLERANCE
-
-
 def _modes_text(modes: list[Mode]) -> str:
     return ", ".join(f"{w:.0f}/{z:.2f}" for w, z in modes) or "none"
 
@@ -397,11 +380,6 @@ class FrfComparison:
     def max_db(self) -> float:
         d = self.difference_db
         return float(np.max(np.abs(d))) if d.size else math.nan
-
-    @property
-    def within(self) -> bool:
-        """Whether :attr:`max_db` is within ``FRF_TOLERANCE_DB`` (issue 15's check; nan: no coherent bin, no)."""
-        return self.max_db <= FRF_TOLERANCE_DB
 
     @property
     def rms_db(self) -> float:
@@ -440,10 +418,11 @@ class FrfComparison:
         largest = np.max(np.abs(20 * np.log10(np.abs(G + error) / np.abs(G))), axis=1)
         return float(np.median(largest))
 
-    def text(self) -> str:
+    def text(self, within: bool) -> str:
+        """The table's row; ``within``: the check's verdict (:data:`maglev.sim.checks.CHECKS`)."""
         w = self.real.w[self.band]
         span = f"{w.min():5.0f}-{w.max():4.0f}" if w.size else "    none"
-        ok = "yes" if self.within else "no"
+        ok = "yes" if within else "no"
         return (f"{self.record:>16} {span} {w.size:5d} {self.max_db:7.1f} {self.rms_db:7.1f} "
                 f"{self.real_error_db:9.1f} {self.exact_max_db():12.1f}   within {FRF_TOLERANCE_DB:g} dB: {ok}")
 
@@ -512,41 +491,28 @@ class Comparison:
         return STATIC_NOISE_MULTIPLE * self.noise_real[0]
 
     def verdicts(self) -> dict[str, bool]:
-        """Every check the table states a tolerance for -> whether it is within: the static curve, the rise time
-        (``RISE_TOLERANCE``), α* (equal), each identified mode, each output std and their ratio, ARMAX's two
-        modes and each frequency response, as far as this comparison holds them.  Why: the table's last line
-        counts them, so a refit's verdict is one line, not a search for "no" among a hundred."""
-        out = {"static curve": self.static_rms <= self.static_tolerance,
-               "rise time": abs(self.rise_sim / self.rise_real - 1) <= RISE_TOLERANCE,
-               "alpha*": self.alpha_sim == self.alpha_real}
-        out.update({f"mode {rec}": _within(sim, real) for rec, (real, sim) in self._mode_rows()})
-        out.update({f"std {rec}": _std_within(real, sim) for rec, (real, sim) in (self.stds or {}).items()})
-        if self.stds and "binary_signal_2" in self.stds and WHITE_RECORD in self.stds:
-            out["std ratio"] = _ratio_within(*self.std_ratio)
-        if self.armax:
-            real, sim = (two_modes(m) for m in self.armax)
-            errs = armax_errors(sim, real)
-            out.update({f"ARMAX {name} mode": _armax_within(errs, name) for name in ("slow", "fast")})
-        out.update({f"FRF {rec}": c.within for rec, c in (self.frf or {}).items()})
-        return out
+        """Every check of :data:`maglev.sim.checks.CHECKS` this comparison holds the record of -> whether it is
+        within its tolerance.  The table's last line counts them, so a refit's verdict is one line."""
+        return checks.verdicts(self)
+
+    @property
+    def armax_pairs(self) -> tuple[tuple[Mode | None, Mode | None], tuple[Mode | None, Mode | None]] | None:
+        """(real, sim) ARMAX modes picked per band (:func:`two_modes`: slow, fast), or None without ARMAX."""
+        return tuple(two_modes(m) for m in self.armax) if self.armax else None
 
     def _mode_rows(self) -> list[tuple[str, tuple[Mode, Mode]]]:
         """The identified modes' rows of the table: each record's dominant mode, then white_noise_4's second."""
         rows = list(self.modes.items())
-        if self.fourth_order and WHITE_RECORD in self.fourth_order:
+        if self.white_noise_mode is not None:
             rows.append((f"{WHITE_RECORD}*", self.white_noise_mode))
         return rows
 
-    def _verdict_line(self) -> str:
-        v = self.verdicts()
-        missed = [name for name, ok in v.items() if not ok]
-        return (f"Checks within their tolerances: {len(v) - len(missed)} of {len(v)}"
-                + (f"; not within: {', '.join(missed)}" if missed else ""))
-
     @property
-    def white_noise_mode(self) -> tuple[Mode, Mode]:
-        """(real, sim) least-damped OE(4,4,5) mode of ``white_noise_4`` (the ≈ 215 rad/s one)."""
-        real, sim = (self.fourth_order or {}).get(WHITE_RECORD, ([], []))
+    def white_noise_mode(self) -> tuple[Mode, Mode] | None:
+        """(real, sim) least-damped OE(4,4,5) mode of ``white_noise_4`` (the ≈ 215 rad/s one), None without it."""
+        if not self.fourth_order or WHITE_RECORD not in self.fourth_order:
+            return None
+        real, sim = self.fourth_order[WHITE_RECORD]
         return least_damped(real), least_damped(sim)
 
     def _startup_lines(self) -> list[str]:
@@ -572,6 +538,7 @@ class Comparison:
         return lines
 
     def table(self) -> str:
+        verdicts = self.verdicts()
         lines = ["Static curve (mean of last 50 % of each 500-sample level) [cm]",
                  f"{'u [A]':>7} {'real':>8} {'sim':>8} {'diff':>8}"]
         for u, yr, ys in zip(self.u_bar, self.y_real, self.y_sim):
@@ -592,7 +559,7 @@ class Comparison:
                   "detrended; wn in rad/s of the 1 ms label",
                   f"{'record':>16} {'wn real':>8} {'wn sim':>8} {'err':>6} {'zeta real':>9} {'zeta sim':>9} {'err':>6}"]
         for rec, ((wr, zr), (ws, zs)) in self._mode_rows():
-            ok = "yes" if _within((ws, zs), (wr, zr)) else "no"
+            ok = "yes" if verdicts[f"mode {rec}"] else "no"
             lines.append(f"{rec:>16} {wr:8.1f} {ws:8.1f} {ws / wr - 1:+6.0%} {zr:9.2f} {zs:9.2f} "
                          f"{zs / zr - 1:+6.0%}  within {MODE_TOLERANCE:.0%}: {ok}")
         if self.fourth_order:
@@ -606,7 +573,7 @@ class Comparison:
                       f"{'record':>16} {'input':>18} {'real':>7} {'sim':>7} {'sim/real':>8} {'spread real':>11} "
                       f"{'sim':>5} {'level sim-real':>14}"]
             for rec, (sr, ss) in self.stds.items():
-                ok = "yes" if _std_within(sr, ss) else "no"
+                ok = "yes" if verdicts[f"std {rec}"] else "no"
                 parts = (self.std_parts or {}).get(rec)
                 spread = (" ".join(f"{max(p) / min(p):5.2f}" for p in parts) if parts else f"{'':5} {'':5}")
                 level = (self.levels or {}).get(rec)
@@ -619,7 +586,7 @@ class Comparison:
                              f"spans {STD_TOLERANCE ** 2:.2f}x); level: mean reading, sim minus real")
             if "binary_signal_2" in self.stds and WHITE_RECORD in self.stds:
                 real, sim = self.std_ratio
-                ok = "yes" if _ratio_within(real, sim) else "no"
+                ok = "yes" if verdicts["std ratio"] else "no"
                 lines.append(f"  binary α .25 / white noise, both 1.5-4 A: real {real:.1f}x, sim {sim:.1f}x "
                              f"({sim / real - 1:+.0%}; within {RATIO_TOLERANCE:.0%}: {ok})")
             if self.hops:
@@ -655,7 +622,7 @@ class Comparison:
             picked = [two_modes(m) for m in self.armax]
             for label, modes, pair in zip(("real", "sim"), self.armax, picked):
                 lines.append(f"  {label:>4}: {_modes_text([m for m in pair if m]):<22} (all: {_modes_text(modes)})")
-            lines.append("  errors: " + _armax_errors_text(*picked))
+            lines.append("  errors: " + _armax_errors_text(*picked, verdicts))
             if self.armax_noise_free is not None:
                 lines.append(f"  sim without measurement noise: {_modes_text(self.armax_noise_free)} "
                              "(what the plant shows; the noisy record's answer depends on the noise's spectrum)")
@@ -665,7 +632,7 @@ class Comparison:
                       f"where the real coherence >= {FRF_COHERENCE:g}",
                       f"{'record':>16} {'band rad/s':>10} {'bins':>5} {'max dB':>7} {'rms dB':>7} {'real ±dB':>9} "
                       f"{'max if exact':>12}"]
-            lines += [c.text() for c in self.frf.values()]
+            lines += [c.text(verdicts[f"FRF {rec}"]) for rec, c in self.frf.items()]
             lines.append("  max if exact: the median max dB a BLA equal to the rig's true response would show, "
                          "from the real estimate's own error (real ±dB, 1σ per bin) alone")
             lines += ["  mean dB, sim BLA over real, by band in rad/s (coherent bins only; '.': none):",
@@ -676,7 +643,7 @@ class Comparison:
                              "halves): the rig's record, then the simulator's replay of its input")
                 for rec, (real, sim) in self.halves.items():
                     lines += [f"{rec:>16} " + _db_row(real) + "  real", f"{'':>16} " + _db_row(sim) + "  sim"]
-        lines += ["", self._verdict_line()]
+        lines += ["", checks.verdict_line(self)]
         return "\n".join(lines)
 
 
@@ -761,12 +728,8 @@ def armax_errors(sim: tuple[Mode | None, Mode | None], real: tuple[Mode | None, 
     return out
 
 
-def _armax_within(errs: dict[str, float], name: str) -> bool:
-    """Whether ARMAX's ``name`` ("slow"/"fast") mode is found and within its tolerances (nan: missing, no)."""
-    return abs(errs[f"{name} wn"]) <= ARMAX_WN_TOLERANCE and abs(errs[f"{name} zeta"]) <= ARMAX_ZETA_TOLERANCE
-
-
-def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | None, Mode | None]) -> str:
+def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | None, Mode | None],
+                       verdicts: dict[str, bool]) -> str:
     errs = armax_errors(sim, real)
     parts = []
     for name in ("slow", "fast"):
@@ -774,5 +737,5 @@ def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | 
         if math.isnan(wn):
             parts.append(f"{name} mode missing")
         else:
-            parts.append(f"{name} wn {wn:+.0%} zeta {z:+.0%} ({'yes' if _armax_within(errs, name) else 'no'})")
+            parts.append(f"{name} wn {wn:+.0%} zeta {z:+.0%} ({'yes' if verdicts[f'ARMAX {name} mode'] else 'no'})")
     return "; ".join(parts) + f" [tolerances {ARMAX_WN_TOLERANCE:.0%} / {ARMAX_ZETA_TOLERANCE:.0%}]"

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid, plot_step
 
-DPI = 150  # the report's figures (issue 12: >= 150 dpi)
+DPI = 150  # the report's figures: at least 150 dpi, sharp in print
 RUN_DPI = 110  # each run's figures, browsed in the MLflow UI (≈ 800 px wide)
 LEVEL = 0.99  # confidence level of every band the study draws
 

@@ -17,7 +17,7 @@ from maglev.sim.plant import PLANTS, Levitator, rig
 
 STICK_SLIP = PLANTS["stick_slip"]  # the plant these tests' numbers were measured on
 from maglev.lab.signals import rbs_spectrum, staircase
-from maglev.sim.sim_vs_real import RISE_TOLERANCE
+from maglev.sim.checks import RISE_TOLERANCE
 
 REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
 KTH = REAL / "el2820_maglev_2022"
