@@ -52,7 +52,7 @@ __all__ = ["Preprocess", "FrequencyResponse", "BLA", "bla", "blas", "frequency_r
            "RECORD_SEGMENT_S", "REALISATIONS"]
 
 VERSION = 2  # bump when the estimator changes: old disk-cache entries are then ignored
-# The defaults make the BLA accurate enough to rank models 0.1-0.2 from it (docs/simulator.md, "Choices"):
+# The defaults make the BLA accurate enough to rank models 0.1-0.2 from it (docs/decisions/0004-bla-distance.md):
 # on the lab's uniform 1.75-2.5 A class the BLA falls from 0.56 to 0.44 cm/A over the first 1 Hz, and
 # 2 s Hann segments (0.5 Hz apart) smooth that roll-off (DC gain 0.527 against 0.555-0.561 from 4-16 s
 # segments); with M = 16 the estimate is also 0.054 (relative, Φu-weighted) from one with M = 256.

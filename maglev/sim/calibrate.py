@@ -53,14 +53,14 @@ __all__ = ["fit_static", "fit_simulated_static", "fit_noise", "fit_friction", "w
            "replay", "friction_errors", "friction_cost", "scored_cost", "main"]
 
 # parameters moved by fit_friction (all positive, fitted in log space): the bushings' damping law
-# (docs/simulator.md, fifth attempt) and the physical time per sample
+# (docs/decisions/0001-friction-law.md) and the physical time per sample
 FRICTION_PARAMS = ("gamma_lower", "gamma_upper", "gamma_quiet_lower", "gamma_quiet_upper", "quiet_level_lower",
                    "quiet_level_upper", "quiet_power_lower", "quiet_power_upper", "activity_fast_lower",
                    "activity_fast_upper", "activity_slow_lower", "activity_slow_upper", "activity_release",
                    "jitter_weight", "jitter_tau", "gamma_aged_lower", "gamma_aged_upper", "age_half", "slip_renewal",
                    "t_phys")
 SENSOR_MAP_PARAMS = ("sensor_pole", "sensor_knee")  # the laser's stretch above its knee, fitted with the damping
-DRY_FRICTION_PARAMS = ("coulomb_lower", "coulomb_upper")  # the bushings' set-valued Coulomb friction (ninth look)
+DRY_FRICTION_PARAMS = ("coulomb_lower", "coulomb_upper")  # the bushings' set-valued Coulomb friction
 DYNAMICS_PARAMS = FRICTION_PARAMS + SENSOR_MAP_PARAMS + DRY_FRICTION_PARAMS  # what fit_friction fits
 STATIC_PARAMS = ("a", "b", "n_coil", "kappa", "y_off", "i_sat")  # what fit_static fits
 SIMULATED_STATIC_EVALS = 40  # least-squares evaluations of fit_simulated_static in main
@@ -74,7 +74,7 @@ def fit_static(stair: IOData, base: Levitator) -> Levitator:
     The fit matches the equilibria (``static_curve``).  A bushing with dry friction holds its magnet short
     of them, so a plant with it simulates a staircase a little further off: 0.0066 cm rms (noise-free) with
     stick_slip's Coulomb levels, where stick_slip's own static parameters, fitted to the simulated
-    staircase, give 0.0051 cm (tolerance 0.0091; docs/simulator.md, ninth look); with stuck_stretched's
+    staircase, give 0.0051 cm (tolerance 0.0091); with stuck_stretched's
     stuck upper bushing 0.074 cm, so for a plant that sticks ``main`` fits :func:`fit_simulated_static` instead.
     """
     u_bar, y_bar = stair_averages(stair)
@@ -309,7 +309,7 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
     times e^``step``; the mains line follows ``t_phys``, :func:`with_dynamics`);
     ``maxfev`` evaluations of 8 simulated records each (≈ 1 s per
     evaluation).  The objective is not smooth (identified modes jump), so this is a
-    local polish: the defaults came from chained longer runs (docs/simulator.md).
+    local polish: the named plants came from chained longer runs (their files' provenance).
     """
     bad = {k: getattr(base.params, k) for k in DYNAMICS_PARAMS if getattr(base.params, k) <= 0}
     if bad:

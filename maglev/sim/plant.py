@@ -450,7 +450,7 @@ class Levitator:
         (``dt``: physical seconds per sample) scaled to std ``wander_force``.  s is the share of small
         steps (nonzero and at most ``WANDER_SMALL_STEP``) over the last ≈ ``WANDER_WINDOW`` samples and
         k = ``wander_power``, so a binary or constant input drives none.  Why: on the rig the output of
-        small white noise is mostly incoherent below 30 rad/s (docs/simulator.md, twelfth look), while the
+        small white noise is mostly incoherent below 30 rad/s, while the
         constant-current record and the staircase show no such wander.
         """
         p = self.params
@@ -501,7 +501,7 @@ class Levitator:
     def _switch_noise(self, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A reading disturbance at each command switch: white noise scaled by ``switch_noise`` x |Δu|,
         through the pole ``switch_noise_pole`` (the rig's records wobble after each switch, in proportion
-        to the step: docs/simulator.md, second attempt)."""
+        to the step: docs/simulator.md)."""
         p = self.params
         du = np.abs(np.diff(u, prepend=u[0]))
         return signal.lfilter([1.0], [1.0, -p.switch_noise_pole], p.switch_noise * du * rng.standard_normal(u.size))

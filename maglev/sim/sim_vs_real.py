@@ -263,7 +263,7 @@ def halves_db(data: IOData, bands: tuple[tuple[float, float], ...] = FRF_BANDS) 
     nonlinear plant answers differently, and the rig itself may drift.  The simulator's replay of the
     same input shows the first reason alone; what the rig shows beyond it is its own drift.  On
     binary_signal_2 the rig's second half passes 1.9-2.5 dB less than its first from 150 to 300 rad/s,
-    stick_slip's replay 0.6 dB less to 0.2 dB more (docs/simulator.md, fourteenth look).
+    stick_slip's replay 0.6 dB less to 0.2 dB more.
     """
     first, second = halves_frf(data)
     both = (first.coherence >= FRF_COHERENCE) & (second.coherence >= FRF_COHERENCE) & (first.w > 0)

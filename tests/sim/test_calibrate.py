@@ -78,13 +78,13 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
                                    gamma_aged_upper=0.0)
     errors_motion, penalty_motion = calibrate.friction_errors(in_motion, targets)
     assert max(errors_motion.get(k, math.inf) for k in legacy) > 1.0
-    # and the default plant scores better than the defaults before 2026-11-23 (Coulomb + Stribeck friction, d = 4.2 cm)
+    # and the default plant scores better than dry_friction (Coulomb + Stribeck friction, d = 4.2 cm)
     cost = calibrate.scored_cost(errors, penalty)
     assert cost < calibrate.scored_cost(errors_motion, penalty_motion)
     assert cost < 0.7 * calibrate.friction_cost(rig("dry_friction"), targets)
     # the other checks but the frequency responses: the default plant meets them all (stuck_stretched, 2026-11-27;
-    # stick_slip did too, docs/simulator.md, ninth look), stretched_sensor and quiet_ageing miss binary_signal_4's
-    # std. The cost scores one replay's FRF rather than the BLA the done-when checks use: binary_signal_2 4.5 dB
+    # stick_slip did too), stretched_sensor and quiet_ageing miss binary_signal_4's
+    # std. The cost scores one replay's FRF rather than the BLA the printed checks use: binary_signal_2 4.5 dB
     # off for stuck_stretched (BLA 2.9 dB), 8.1 dB for stick_slip (BLA 5.1 dB), whose cost is 2.71 against 1.52.
     def unmet(errs: dict[str, float]) -> set[str]:
         return {k for k, v in errs.items() if v > 1.0 and k not in legacy and not k.startswith("FRF")}
@@ -149,7 +149,7 @@ def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
 def test_friction_errors_are_the_declared_checks_of_the_printed_comparison():
     # the fit scores the checks of maglev.sim.checks the calibration scores, on the same numbers the printed
     # comparison states; only the frequency responses differ (one replay's estimate where the table has the BLA)
-    lev = rig("stick_slip").with_params(coulomb_upper=0.04)  # not the defaults
+    lev = rig("stick_slip").with_params(coulomb_upper=0.04)  # not a named plant
     errors, _ = calibrate.friction_errors(lev, calibrate.friction_targets(REAL))
     cmp = sim_vs_real.compare(lev, REAL, fourth_order_records=(checks.WHITE_RECORD,), frf_records=())
     expected = {f"{name} {part}".strip(): (calibrate.MISSING_MODE_ERROR if np.isnan(err) else err)

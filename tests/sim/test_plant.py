@@ -28,7 +28,7 @@ def _forces(p: LevitatorParams, current: float, z: float, h: float) -> tuple[flo
 
 @pytest.mark.parametrize("u0", [0.0, 1.0, 2.0, 2.75, 3.5])
 def test_equilibrium_balances_forces_and_is_where_the_simulation_settles(u0):
-    # without dry friction the simulation settles on the equilibrium; the defaults' set-valued Coulomb friction
+    # without dry friction the simulation settles on the equilibrium; stick_slip's set-valued Coulomb friction
     # (0.003 / 0.0015 N) holds the magnets within its band of equilibria, a few hundredths of a mm short
     lev = Levitator(STICK_SLIP).with_params(**NO_DRY_FRICTION)
     eq = lev.equilibrium(u0)
@@ -68,7 +68,7 @@ def test_seat_and_top_stop_hold():
     assert data.meta["h"][-1] == 8.6 and capped.equilibrium(3.5).upper_at_top
 
 
-NO_DRY_FRICTION = dict(coulomb_lower=0.0, coulomb_upper=0.0)  # the defaults' set-valued Coulomb friction off
+NO_DRY_FRICTION = dict(coulomb_lower=0.0, coulomb_upper=0.0)  # stick_slip's set-valued Coulomb friction off
 IN_MOTION = dict(gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0,
                  **NO_DRY_FRICTION)  # the damping in motion alone: what linearize(dry_friction=False) has
 
@@ -177,7 +177,7 @@ def test_linearisation_matches_small_signal_identification(viscous_only):
     # a small input about a rest sees the friction's full damping at rest, which the Jacobian
     # includes; without the quiet-input and aged-contact damping the modes are a light complex pair.
     # The Jacobian leaves out the set-valued Coulomb friction, which has no slope at rest: with it, as in
-    # the defaults, a ±0.01 A input does not move the magnets at all
+    # stick_slip, a ±0.01 A input does not move the magnets at all
     u = 2.75 + 0.01 * (random_binary(8000, 0.5, -1.0, 1.0, seed=4))
     assert np.ptp(Levitator(STICK_SLIP).simulate(u, noise=False, start=2.75).y) == 0.0
     lev = Levitator(STICK_SLIP).with_params(**NO_DRY_FRICTION)

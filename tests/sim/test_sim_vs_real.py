@@ -190,7 +190,7 @@ def test_stair_steps_give_a_linear_plants_step_overshoot_and_band_rms_at_every_l
 @needs_real
 @pytest.mark.realdata
 def test_the_rigs_first_step_off_the_lift_off_overshoots_most(full_comparison):
-    # measured on the rig's staircase (docs/simulator.md, thirteenth look): steps of 0.5 A, the lower magnet
+    # measured on the rig's staircase: steps of 0.5 A, the lower magnet
     # lifted off its seat between 1.0 and 1.5 A. 1.5 -> 2.0 A overshoots 51 % with 1.12 cm/A over 30-150 rad/s;
     # the next steps 13 %, 18 %, 4 %, 2 % with 0.64, 0.65, 0.58, 0.38 cm/A
     real, sim = full_comparison.steps
@@ -203,7 +203,7 @@ def test_the_rigs_first_step_off_the_lift_off_overshoots_most(full_comparison):
 @needs_real
 @pytest.mark.realdata
 def test_the_rigs_response_grows_with_the_range_in_every_input_class(full_comparison):
-    # measured on the rig (docs/simulator.md, twelfth look): 30-150 rad/s, the coherent output per A of input
+    # measured on the rig: 30-150 rad/s, the coherent output per A of input
     # std grows with the range in each class, ×5.0 on uniform white noise from 0.75 to 2.5 A (0.0052, 0.0181,
     # 0.0265 cm/A), ×1.52 on binary α .5 and ×1.20 on binary α .25 from 1.5 to 2.5 A
     gains = full_comparison.gains
@@ -219,7 +219,7 @@ def test_the_rigs_response_grows_with_the_range_in_every_input_class(full_compar
 @needs_real
 @pytest.mark.realdata
 def test_the_stuck_upper_plant_grades_the_uniform_class_by_range_and_leaves_small_noise_unexplained_as_the_rig():
-    # docs/simulator.md, thirteenth look: on the rig the coherent output per A over 30-150 rad/s of white_noise_2,
+    # on the rig the coherent output per A over 30-150 rad/s of white_noise_2,
     # _1, _4 is 0.0052, 0.0181, 0.0265 cm/A (x5.0), and below 30 rad/s white_noise_2's output is 0.0017 cm
     # coherent against 0.0134 cm incoherent; stick_slip's replays give x1.02 and mostly coherent output
     from maglev.sim.plant import rig
@@ -242,7 +242,7 @@ def test_the_stuck_upper_plant_grades_the_uniform_class_by_range_and_leaves_smal
 @needs_real
 @pytest.mark.realdata
 def test_only_the_rigs_alpha_quarter_full_range_record_hops(full_comparison):
-    # measured on the rig (docs/simulator.md, eleventh look): binary α .25 over 1.5-4 A reads above 12 cm on
+    # measured on the rig: binary α .25 over 1.5-4 A reads above 12 cm on
     # 1.76 % of its kept samples, up to 15.55 cm; no other record passes 10.5 cm, binary α .5 over the same
     # range included (10.43 cm)
     hops = full_comparison.hops
@@ -257,7 +257,7 @@ def test_only_the_rigs_alpha_quarter_full_range_record_hops(full_comparison):
 @needs_real
 @pytest.mark.realdata
 def test_the_rigs_small_white_noise_records_are_less_steady_than_the_std_band_is_wide(full_comparison):
-    # measured on the rig's records (docs/simulator.md, ninth look): white_noise_1's and white_noise_2's thirds
+    # measured on the rig's records: white_noise_1's and white_noise_2's thirds
     # differ by more than the whole band [0.8, 1.25] (1.72x, 1.76x), so a single small record knows its own std no
     # better than the check's band. The default plant's wander makes its replays unsteady too, less than the rig
     # (1.33x, 1.16x on seed 1; stick_slip's stayed within 1.25x)
@@ -271,7 +271,7 @@ def test_the_rigs_small_white_noise_records_are_less_steady_than_the_std_band_is
 @needs_real
 @pytest.mark.realdata
 def test_the_2022_records_sit_below_the_staircases_static_curve(full_comparison):
-    # a session offset (docs/simulator.md, ninth look): at the same currents every 2022 record reads lower than
+    # a session offset: at the same currents every 2022 record reads lower than
     # the simulator fitted to the 2022 staircase, by 0.18-0.51 cm (stick_slip 0.08-0.47 cm), far beyond the sensor
     # noise (0.002 cm); the constant-3 A record reads below the staircase's own 3 A level by about as much
     for rec, (real, sim) in full_comparison.levels.items():
@@ -415,7 +415,7 @@ def test_the_rig_shows_two_lightly_damped_armax_modes_and_coherent_frequency_res
     for rec, c in full_comparison.frf.items():
         assert c.band.sum() >= 40, rec  # a usable band where the real estimate is coherent
         assert c.real_error_db < 1.0, rec  # and its magnitude known to better than 1 dB there
-        # but the largest of its bins' own errors is 2.1-2.2 dB (docs/simulator.md, eleventh look): an exact
+        # but the largest of its bins' own errors is 2.1-2.2 dB: an exact
         # simulator would read that much of the 3 dB the check allows
         assert 1.8 < c.exact_max_db() < 2.6, rec
         assert np.median(c.sim.std[c.band] / np.abs(c.sim.G[c.band])) < 0.1  # the BLA's own error is small
@@ -442,7 +442,7 @@ def test_the_rigs_wider_binary_alpha_quarter_record_loses_gain_between_its_halve
     # binary_signal_2's second half passes 1.9-2.5 dB less than its first from 100 to 300 rad/s (its output std
     # falls from 1.18 to 0.86 cm); binary_signal_3 (the same range at α .5) and white_noise_4 stay within about
     # a dB in every band.  Part of it is the input's: the simulator's replay of the same input differs between
-    # its halves too (docs/simulator.md, fourteenth look), so the printout gives both, and only the rig's side
+    # its halves too, so the printout gives both, and only the rig's side
     # is pinned here
     assert list(full_comparison.halves) == list(full_comparison.frf)
     real = {rec: r for rec, (r, _) in full_comparison.halves.items()}
@@ -456,8 +456,7 @@ def test_the_rigs_wider_binary_alpha_quarter_record_loses_gain_between_its_halve
 @pytest.mark.realdata
 def test_the_rig_damps_uniform_white_noise_far_more_than_binary_alpha_half_over_the_same_range():
     # binary_signal_3 (α .5) and white_noise_4 (uniform) both run over 1.5-4 A and are both white, yet the rig's
-    # frequency response to the binary one is 12-15 dB larger from 50 to 300 rad/s (docs/simulator.md, tenth
-    # look). The simulator's BLAs differ by about 8 dB. The 4-7 dB they lack is white_noise_4's excess over the
+    # frequency response to the binary one is 12-15 dB larger from 50 to 300 rad/s. The simulator's BLAs differ by about 8 dB. The 4-7 dB they lack is white_noise_4's excess over the
     # rig plus binary_signal_3's deficit.
     binary, uniform = (sim_vs_real.record_frf(load_record(r, REAL)) for r in ("binary_signal_3", "white_noise_4"))
     coherent = (binary.coherence >= sim_vs_real.FRF_COHERENCE) & (uniform.coherence >= sim_vs_real.FRF_COHERENCE)
