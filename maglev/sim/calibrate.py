@@ -38,12 +38,13 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize, signal
 
-from maglev.sim import bla, checks
+from maglev.sim import checks
 from maglev.data import IOData
 from maglev.sim.checks import (ARMAX_RECORD, POLE_RECORDS, STATIC_NOISE_MULTIPLE, STD_RECORDS,
                                WHITE_RECORD)
 from maglev.sim.plant import DEFAULT_PLANT, PLANTS, Levitator, rig
 from maglev.refdata import load_record, refdata_dir
+from maglev.spectral import FrequencyResponse
 from maglev.sim.sim_vs_real import (FRF_COHERENCE, STAIR_LEVELS, STAIR_TAIL, TRANSIENT_FRACTION, Comparison,
                                     FrfComparison, Mode, armax_modes_of, compare, dominant_mode_of,
                                     fourth_order_modes_of, least_damped, noise_psd, output_std, quantisation_step,
@@ -161,7 +162,7 @@ class FrictionTargets:
     static_tolerance: float  # cm, STATIC_NOISE_MULTIPLE x the sensor noise std at constant 3 A
     rise: float  # samples
     armax: tuple[Mode | None, Mode | None] = (None, None)  # ARMAX [4 4 4 1] modes of ARMAX_RECORD
-    frf: dict[str, bla.FrequencyResponse] | None = None  # SCORED_FRF_RECORDS -> the real record's Welch estimate
+    frf: dict[str, FrequencyResponse] | None = None  # SCORED_FRF_RECORDS -> the real record's Welch estimate
 
 
 SCORED_FRF_RECORDS = ("binary_signal_2", WHITE_RECORD)  # the frequency responses the fit scores

@@ -28,7 +28,7 @@ The ARMAX and frequency-response measurements (``ARMAX_ORDERS``, ``FRF_CLASSES``
   damped modes (≈ 74 and ≈ 218 rad/s).  The fit is repeated on the simulated record
   without measurement noise: ARMAX's A polynomial also carries the noise's poles, so
   a sharp sensor-noise line can take two of its four poles (docs/simulator.md);
-* the real records' Welch frequency-response estimate (:func:`maglev.sim.bla.frequency_response`,
+* the real records' Welch frequency-response estimate (:func:`maglev.spectral.frequency_response`,
   with its coherence-based error) against the simulator's best linear approximation
   for the same input class (:func:`maglev.sim.bla.bla`), both trimmed and detrended at 1 ms,
   compared in dB where the real estimate's coherence is at least ``FRF_COHERENCE``: the
@@ -82,6 +82,7 @@ from maglev.estimation import armax, oe
 from maglev.sim.labdata import ExperimentSpec
 from maglev.sim.plant import Levitator
 from maglev.refdata import load_record
+from maglev.spectral import FrequencyResponse, Preprocess, frequency_response
 
 __all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
            "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
@@ -114,7 +115,7 @@ FRF_CLASSES = {  # real record -> its input class (the simulator's BLA is estima
     "binary_signal_3": ExperimentSpec("binary", 1.5, 4.0, alpha=0.5, duration_s=20.0),
     "white_noise_4": ExperimentSpec("uniform", 1.5, 4.0, duration_s=20.0),
 }
-FRF_PREPROCESS = bla_mod.Preprocess(trim=2000, detrend=True, decimate=1)
+FRF_PREPROCESS = Preprocess(trim=2000, detrend=True, decimate=1)
 FRF_SEGMENT_S = 1.0  # s per Welch segment: 17+ averages on a 20 s record, 6.3 rad/s resolution
 FRF_COHERENCE = 0.5  # the real estimate's coherence above which the magnitudes are compared
 FRF_REALISATIONS = 8
@@ -233,10 +234,10 @@ def output_level(data: IOData) -> float:
     return float(np.mean(data.trim(TRANSIENT_FRACTION).y))
 
 
-def record_frf(data: IOData) -> bla_mod.FrequencyResponse:
+def record_frf(data: IOData) -> FrequencyResponse:
     """A record's Welch frequency-response estimate with the comparison's settings (``FRF_PREPROCESS``,
     ``FRF_SEGMENT_S``): the same for a real record and a simulated replay."""
-    return bla_mod.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
+    return frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
 
 
 def record_halves(data: IOData) -> tuple[IOData, IOData]:
@@ -248,7 +249,7 @@ def record_halves(data: IOData) -> tuple[IOData, IOData]:
     return data.segment(0, trim + half), data.segment(half, trim + 2 * half)
 
 
-def halves_frf(data: IOData) -> tuple[bla_mod.FrequencyResponse, bla_mod.FrequencyResponse]:
+def halves_frf(data: IOData) -> tuple[FrequencyResponse, FrequencyResponse]:
     """:func:`record_frf` of each of a record's :func:`record_halves`, first half first."""
     first, second = record_halves(data)
     return record_frf(first), record_frf(second)
@@ -271,7 +272,7 @@ def halves_db(data: IOData, bands: tuple[tuple[float, float], ...] = FRF_BANDS) 
 
 
 def output_split(data: IOData, bands: tuple[tuple[float, float], ...] = SPLIT_BANDS) -> list[tuple[float, float]]:
-    """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.sim.bla.FrequencyResponse.band_rms`)
+    """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.spectral.FrequencyResponse.band_rms`)
     of its :func:`record_frf`.  Why: the output std alone cannot tell an output the input drives
     from one it does not.
     """
@@ -362,8 +363,8 @@ class FrfComparison:
     calibration's cost, against the Welch FRF of the simulator's replay of the record)."""
 
     record: str
-    real: bla_mod.FrequencyResponse
-    sim: bla_mod.FrequencyResponse
+    real: FrequencyResponse
+    sim: FrequencyResponse
 
     @property
     def band(self) -> np.ndarray:
@@ -405,7 +406,7 @@ class FrfComparison:
         """Median largest |dB| difference a simulator would show whose BLA were the rig's true response [dB].
 
         Monte Carlo over the real estimate's own error alone: each coherent bin's estimate is the true
-        response plus a complex Gaussian error of rms ``real.std`` (:class:`~maglev.sim.bla.FrequencyResponse`).
+        response plus a complex Gaussian error of rms ``real.std`` (:class:`~maglev.spectral.FrequencyResponse`).
         Why: :attr:`max_db` is a maximum over tens of bins, each off by its own error (:attr:`real_error_db`,
         ≈ 0.8 dB), so even an exact simulator does not read 0; this is what it would read.
         """

@@ -84,7 +84,7 @@ def plant_name(ds: dict) -> str:
 
 
 def _bla_preprocess(ds: dict):
-    from maglev.sim.bla import Preprocess
+    from maglev.spectral import Preprocess
 
     pp = ds["preprocess"]
     return Preprocess(trim=int(pp["trim"]), detrend=bool(pp["detrend"]), decimate=int(pp["decimate"]))

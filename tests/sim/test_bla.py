@@ -15,8 +15,8 @@ import pytest
 from scipy import signal
 
 from maglev.sim import bla as bla_mod
-from maglev.sim.bla import (BLA, Preprocess, bla, frequency_response, record_distance, relative_distance,
-                            validation_records, weighted_distance)
+from maglev.sim.bla import BLA, bla, record_distance, relative_distance, validation_records, weighted_distance
+from maglev.spectral import FrequencyResponse, Preprocess, frequency_response
 from maglev.data import IOData
 from maglev.estimation import arx, oe
 from maglev.sim.labdata import ExperimentSpec, input_signal
@@ -63,7 +63,6 @@ def test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies():
     """A slow pole-zero pair near ω = 0 (as OE [4 4 2] fits on the narrow uniform class) on a flat input
     spectrum: given the model's response as a function the distance is the integral's; sampled at the
     Welch frequencies it weighs the pair's dip at ω = 0 as if it filled a whole bin."""
-    from maglev.sim.bla import FrequencyResponse
 
     w = np.linspace(0, np.pi / 1e-3, 1001)  # the Welch grid of 2 s segments at 1 ms: 0.5 Hz apart
     suu = np.ones(w.size)
@@ -230,7 +229,7 @@ def test_band_rms_splits_the_output_into_the_filtered_input_and_the_noise():
 def test_band_rms_rejects_a_band_that_is_not_one(lo, hi):
     w = np.linspace(0, np.pi / 1e-3, 501)  # 2π rad/s apart: (1, 2) holds no frequency
     ones = np.ones(w.size)
-    frf = bla_mod.FrequencyResponse(w=w, G=ones.astype(complex), std=0 * ones, coherence=ones, Suu=ones, Syy=ones,
+    frf = FrequencyResponse(w=w, G=ones.astype(complex), std=0 * ones, coherence=ones, Suu=ones, Syy=ones,
                                     Ts=1e-3, averages=1)
     with pytest.raises(ValueError, match=f"lo={lo!r}, hi={hi!r}|{lo!r} <= w < {hi!r}"):
         frf.band_rms(lo, hi)

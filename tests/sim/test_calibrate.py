@@ -102,7 +102,7 @@ def test_frf_figure_draws_a_column_per_record(tmp_path):
     # `python -m maglev.sim.calibrate --out DIR` draws the docs' figure; 3.2 in per record at 80 dpi
     from matplotlib.image import imread
 
-    from maglev.sim.bla import FrequencyResponse
+    from maglev.spectral import FrequencyResponse
 
     w = np.linspace(0.0, np.pi / 1e-3, 400)
     G = 1.0 / (1.0 - (w / 220.0) ** 2 + 0.2j * w / 220.0)

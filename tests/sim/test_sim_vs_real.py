@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from maglev.data import IOData
-from maglev.sim import bla as bla_mod, calibrate, checks, sim_vs_real
-from maglev.sim.bla import FrequencyResponse
+from maglev.sim import calibrate, checks, sim_vs_real
+from maglev.spectral import FrequencyResponse, frequency_response
 from maglev.sim.plant import DEFAULT_PLANT, rig
 from maglev.refdata import KTH_2022, load_record
 
@@ -95,7 +95,7 @@ def test_each_records_coherent_and_incoherent_output_per_band_are_the_real_recor
     for rec in sim_vs_real.SPLIT_RECORDS:
         # the real record's numbers are band_rms of its Welch estimate with the FRF settings
         real = load_record(rec, REAL)
-        frf = bla_mod.frequency_response(sim_vs_real.FRF_PREPROCESS.apply(real), sim_vs_real.FRF_SEGMENT_S)
+        frf = frequency_response(sim_vs_real.FRF_PREPROCESS.apply(real), sim_vs_real.FRF_SEGMENT_S)
         expected = [frf.band_rms(lo, hi) for lo, hi in sim_vs_real.SPLIT_BANDS]
         assert np.array(split[rec][0], dtype=float) == pytest.approx(np.array(expected, dtype=float), rel=1e-12)
         if rec == "white_noise_2":  # and the simulated ones are the replay's (compare() uses seed 1)
