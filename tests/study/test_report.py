@@ -1,5 +1,5 @@
 """End to end: the default lab sweep with the ranking callback into a tmp store, then the report;
-and the default sweep's own promises.
+and the default sweep's own promises (issue 12, done-when).
 
 The sweep runs once, in-process (tests/study/harness.py), as ``python study.py -m +sweep=lab``
 runs it (full-length records, four structures, the default orders, the BLA, the lab steps)
@@ -183,7 +183,7 @@ def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tm
 
 # ---------------------------------------------------------------------------- the default sweep's promises
 DATASETS = ("uniform_narrow", "uniform_wide", "binary_a025")
-MIN_RANK_CORRELATION = 0.6  # required: Spearman(g_bla_err, val_fit_sim) <= -0.6 within each dataset
+MIN_RANK_CORRELATION = 0.6  # issue 12: Spearman(g_bla_err, val_fit_sim) <= -0.6 within each dataset
 # the datasets whose validation output the input explains enough for the FIT to rank G; on uniform_narrow the
 # default plant's output is mostly its wander, as the rig's white_noise_2's is mostly incoherent (test below)
 RANKED_DATASETS = ("uniform_wide", "binary_a025")
@@ -221,7 +221,8 @@ def test_every_simulated_run_logs_the_bla_distance_the_naive_baseline_and_the_si
 def test_runs_closer_to_the_bla_simulate_the_validation_data_better(lab_sweep, dataset):
     """g_bla_err is measured as the validation FIT sees G: on records of the validation length, initial state fitted.
     On uniform_narrow the stationary distance (g_bla_err_stationary) ranks the OE models' slow pole-zero pair, an
-    error on time scales longer than the 11 s record, as their largest (docs/decisions/0004-bla-distance.md)."""
+    error on time scales longer than the 11 s record, as their largest (README, 'Is the best linear approximation
+    the truth?')."""
     store, _, _ = lab_sweep
     runs = model_runs(store)[dataset]
     rho = spearmanr([r.data.metrics["g_bla_err"] for r in runs], [r.data.metrics["val_fit_sim"] for r in runs])
@@ -233,8 +234,8 @@ def test_on_small_white_noise_the_wander_owns_the_validation_output_as_on_the_ri
     drive, as the rig's white_noise_2's is mostly incoherent (OE(2,2,2) simulates it at 4.7 %): the BLA itself
     simulates the validation data at about 12 %, and every model below 25 %. There one validation record's FIT
     cannot rank the models' distance to the BLA (Spearman +0.52 on 2026-11-27: OE(5) simulated 16 %, above the
-    ceiling, 2.9 times the BLA's norm away), so the rank check is made on the other two datasets
-    (docs/decisions/0004-bla-distance.md). quiet_ageing's ceiling here was 88 %."""
+    ceiling, 2.9 times the BLA's norm away), so issue 12's rank check is made on the other two datasets
+    (README, "Is the best linear approximation the truth?"). quiet_ageing's ceiling here was 88 %."""
     store, _, _ = lab_sweep
     for r in model_runs(store)["uniform_narrow"]:
         m = r.data.metrics
@@ -244,8 +245,8 @@ def test_on_small_white_noise_the_wander_owns_the_validation_output_as_on_the_ri
 def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     """The ranking's cautions (its own artifact) name an order-at-edge caution for exactly the structures whose
     mean simulation FIT, recomputed here from the runs' logged metrics, still rises by more than ORDER_MARGIN
-    from order 4 to 5. ARX always does (its noise model 1/A needs order 7 before the FIT levels off:
-    docs/decisions/0003-orders-by-simulation-fit.md). On stick_slip ARMAX, OE and BJ levelled off at 4; on the default plant since 2026-11-27
+    from order 4 to 5. ARX always does (its noise model 1/A needs order 7 before the FIT levels off: README,
+    "Choosing the orders"). On stick_slip ARMAX, OE and BJ levelled off at 4; on the default plant since 2026-11-27
     ARMAX and OE rise too (mean +2.2 and +1.4 points, most of it on uniform_narrow, where the higher order follows
     more of the wander: OE 9.1 -> 16.2 %), BJ does not. Their cautions then say that the models' mean distance to
     the BLA grows meanwhile (OE 0.43 -> 1.16); ARX's falls (0.59 -> 0.39)."""
