@@ -45,10 +45,10 @@ from maglev.sim.checks import (ARMAX_RECORD, POLE_RECORDS, STATIC_NOISE_MULTIPLE
 from maglev.sim.plant import DEFAULT_PLANT, PLANTS, Levitator, rig
 from maglev.refdata import load_record, refdata_dir
 from maglev.spectral import FrequencyResponse
-from maglev.sim.sim_vs_real import (FRF_COHERENCE, STAIR_LEVELS, STAIR_TAIL, TRANSIENT_FRACTION, Comparison,
-                                    FrfComparison, Mode, armax_modes_of, compare, dominant_mode_of,
-                                    fourth_order_modes_of, least_damped, noise_psd, output_std, quantisation_step,
-                                    record_frf, stair_averages, stair_step, two_modes)
+from maglev.lab.measures import (STAIR_LEVELS, STAIR_TAIL, TRANSIENT_FRACTION, Mode, armax_modes_of, dominant_mode_of,
+                                 fourth_order_modes_of, least_damped, noise_psd, output_std, quantisation_step,
+                                 stair_averages, stair_step, two_modes)
+from maglev.sim.sim_vs_real import FRF_COHERENCE, Comparison, FrfComparison, compare, record_frf
 
 __all__ = ["fit_static", "fit_simulated_static", "fit_noise", "fit_friction", "with_dynamics", "friction_targets",
            "replay", "friction_errors", "friction_cost", "scored_cost", "main"]

@@ -22,12 +22,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from maglev.lab.measures import Mode
+
 __all__ = ["Check", "CHECKS", "Measured", "errors", "verdicts", "verdict_line", "STATIC_NOISE_MULTIPLE",
            "RISE_TOLERANCE", "MODE_TOLERANCE", "STD_TOLERANCE", "RATIO_TOLERANCE", "ARMAX_WN_TOLERANCE",
            "ARMAX_ZETA_TOLERANCE", "FRF_TOLERANCE_DB", "POLE_RECORDS", "STD_RECORDS", "FRF_RECORDS",
            "WHITE_RECORD", "ARMAX_RECORD", "STAIR_RECORD", "RATIO_RECORDS"]
-
-Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 
 # tolerances
 STATIC_NOISE_MULTIPLE = 5.0  # static curve: rms over the staircase's levels <= this many sensor-noise stds

@@ -68,38 +68,26 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
 
-from maglev.lab.averages import get_stationary_averages
 from maglev.lab.input_design import choose_alpha, output_spectrum
-from maglev.lab.sampling import held_steps, rise_time
+from maglev.lab.measures import (ARMAX_ORDERS, FAST_BAND, FOURTH_DECIMATION, FOURTH_ORDERS, HOP_LEVEL, OE_ORDERS,
+                                 SLOW_BAND, STD_PARTS, TRANSIENT_FRACTION, StairStep, armax_modes_of, dominant_mode_of,
+                                 fourth_order_modes_of, hops, least_damped, noise_psd, output_level, output_std,
+                                 output_std_parts, quantisation_step, stair_averages, stair_step, stair_steps,
+                                 two_modes)
 from maglev.sim import bla as bla_mod, checks
 from maglev.sim.checks import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_TOLERANCE_DB,
                                MODE_TOLERANCE, POLE_RECORDS, RATIO_TOLERANCE, STATIC_NOISE_MULTIPLE,
                                STD_TOLERANCE, WHITE_RECORD, Mode)
 from maglev.data import IOData
-from maglev.estimation import armax, oe
 from maglev.sim.labdata import ExperimentSpec
 from maglev.sim.plant import Levitator
 from maglev.refdata import load_record
 from maglev.spectral import FrequencyResponse, Preprocess, frequency_response
 
-__all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
-           "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
-           "output_std", "output_split", "coherent_gain", "hops", "record_frf", "record_halves", "halves_frf",
-           "halves_db", "stair_averages", "stair_step", "StairStep", "stair_steps",
-           "quantisation_step", "noise_psd"]
+__all__ = ["Comparison", "FrfComparison", "compare", "compare_frf", "armax_errors", "output_split", "coherent_gain",
+           "record_frf", "record_halves", "halves_frf", "halves_db"]
 
-STAIR_LEVELS = 21
-STAIR_TAIL = 50.0
-TRANSIENT_FRACTION = 0.25  # start-up transient dropped from identification records
-OE_ORDERS = (2, 2, 3)  # nb, nf, nk of the models whose dominant mode is compared
-FOURTH_ORDERS = (4, 4, 5)  # nb, nf, nk of the models that resolve both modes (after decimation)
-FOURTH_DECIMATION = 2
-SLOWEST_RESONANCE = 30.0  # rad/s: slower identified pairs are drift or stick plateaus, not resonances
-# rad/s: faster pairs sit at the Nyquist frequency of the records decimated by FOURTH_DECIMATION (1571 rad/s), the
-# noise's sample-to-sample alternation, not a resonance (the rig's modes lie near 75-90 and 215 rad/s)
-FASTEST_RESONANCE = 1000.0
 # records whose output std shows the rig's amplitude dependence (notes §4.6)
 RECORD_INPUTS = {"binary_signal_1": "bin α.25 1.5-3 A", "binary_signal_2": "bin α.25 1.5-4 A",
                  "binary_signal_3": "bin α.5 1.5-4 A", "binary_signal_4": "bin α.5 1.5-3 A",
@@ -107,9 +95,6 @@ RECORD_INPUTS = {"binary_signal_1": "bin α.25 1.5-3 A", "binary_signal_2": "bin
                  "white_noise_4": "U(1.5, 4) A"}
 STD_RECORDS = checks.STD_RECORDS
 # the 2022 group's ARMAX on the α .25 1.5-4 A record, and the frequency-domain comparison
-ARMAX_ORDERS = (4, 4, 4, 1)  # na, nb, nc, nk, at the labelled 1 ms
-SLOW_BAND, FAST_BAND = (40.0, 150.0), (150.0, 400.0)  # rad/s: where the two lightly damped modes lie
-LIGHTLY_DAMPED = 0.6  # ζ below which a pair counts as a lightly damped mode
 FRF_CLASSES = {  # real record -> its input class (the simulator's BLA is estimated for this class)
     "binary_signal_2": ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=20.0),
     "binary_signal_3": ExperimentSpec("binary", 1.5, 4.0, alpha=0.5, duration_s=20.0),
@@ -138,102 +123,10 @@ GAIN_BAND = SPLIT_BANDS[1]  # rad/s: around the slow mode (≈ 75-90 rad/s), bel
 # constant-input records that start from rest (0 A): how far a large step throws the upper magnet
 STARTUP_RECORDS = ("binary_signal_9", "binary_signal_10")  # 3 A, 4 A (the regulator saturated)
 STARTUP_SAMPLES = 1000  # the throw's peak is sought in the first ones
-STAIR_STEP_RANGE = (1.5, 4.0)  # A: the staircase's levels inside the working region (rise time, overshoot)
 
 
 
 # ---------------------------------------------------------------------- the lab's numbers
-def stair_averages(data: IOData) -> tuple[np.ndarray, np.ndarray]:
-    """Stationary averages (ū, ȳ) of the 21-level staircase."""
-    return (get_stationary_averages(data.u, STAIR_LEVELS, STAIR_TAIL),
-            get_stationary_averages(data.y, STAIR_LEVELS, STAIR_TAIL))
-
-
-def stair_step(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE) -> tuple[float, float]:
-    """(rise time [samples], overshoot [fraction]) of the mean normalised stair step in ``u_range``."""
-    rt = rise_time(data, u_range=u_range)
-    return rt.samples, float(rt.response.max() - 1.0)
-
-
-@dataclass(frozen=True)
-class StairStep:
-    """One stair step's numbers: the levels ``u0`` -> ``u1`` [A], its overshoot (fraction of the step) and
-    its band gain [cm/A]: the rms of |G| over a band (trapezoids on a 1 rad/s grid), G the DTFT of the
-    step's impulse response (the differenced response over the whole hold, per A of the step)."""
-
-    u0: float
-    u1: float
-    overshoot: float
-    band_gain: float
-
-
-def stair_steps(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE,
-                band: tuple[float, float] = GAIN_BAND) -> list[StairStep]:
-    """Overshoot and band gain of each stair step in ``u_range``, one by one.
-
-    Why: the mean normalised step (:func:`stair_step`) averages the working points away.  Step by
-    step, with the step size fixed, the numbers say how the dynamics change with the working point
-    alone, which the records with a wider input range confound with the range.
-    """
-    lo, hi = band
-    w = np.linspace(lo, hi, int(round(hi - lo)) + 1) * data.Ts  # rad/sample
-    out = []
-    for step in held_steps(data, u_range=u_range):
-        r = step.response(data.y)
-        h = np.diff(r, prepend=0.0) * (step.y1 - step.y0) / (step.u1 - step.u0)
-        _, g = signal.freqz(h, worN=w)
-        power = np.trapezoid(np.abs(g) ** 2, w) / (w[-1] - w[0])
-        out.append(StairStep(u0=step.u0, u1=step.u1, overshoot=float(r.max() - 1.0), band_gain=float(np.sqrt(power))))
-    return out
-
-
-def noise_psd(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Welch periodogram of the detrended reading (frequencies in cycles/sample)."""
-    return signal.welch(y - y.mean(), nperseg=512)
-
-
-def quantisation_step(y: np.ndarray) -> float:
-    """Smallest nonzero difference between readings (the ADC step)."""
-    steps = np.abs(np.diff(np.asarray(y, dtype=float)))
-    return float(steps[steps > 1e-9].min())
-
-
-def output_std(data: IOData) -> float:
-    """Std of the reading after dropping the start-up transient (``TRANSIENT_FRACTION``) [cm]."""
-    return float(np.std(data.trim(TRANSIENT_FRACTION).y))
-
-
-STD_PARTS = 3  # pieces of the kept part whose stds show how steady a record's amplitude is
-
-
-def output_std_parts(data: IOData, parts: int = STD_PARTS) -> tuple[float, ...]:
-    """Std of each of ``parts`` equal consecutive pieces of the reading after the start-up transient [cm].
-
-    Why: the check compares one std per record, and the rig's small records are not steady (white_noise_1's
-    thirds differ by 1.7x); their spread says how well a single record knows its own std.
-    """
-    return tuple(float(np.std(piece)) for piece in np.array_split(data.trim(TRANSIENT_FRACTION).y, parts))
-
-
-HOP_LEVEL = 12.0  # cm: the rig's readings exceed it only in binary_signal_2's hops
-
-
-def hops(data: IOData, level: float = HOP_LEVEL) -> tuple[float, float]:
-    """(share of the reading above ``level``, largest reading [cm]) after the start-up transient.
-
-    Why: on the rig, binary α .25 over 1.5-4 A throws the upper magnet up in hops that read up to
-    15.6 cm, and no other record passes 10.5 cm; the output std alone cannot tell such hops from a
-    larger steady swing.
-    """
-    y = data.trim(TRANSIENT_FRACTION).y
-    return float(np.mean(y > level)), float(y.max())
-
-
-def output_level(data: IOData) -> float:
-    """Mean reading after the start-up transient [cm]: the working point a record sits at."""
-    return float(np.mean(data.trim(TRANSIENT_FRACTION).y))
-
-
 def record_frf(data: IOData) -> FrequencyResponse:
     """A record's Welch frequency-response estimate with the comparison's settings (``FRF_PREPROCESS``,
     ``FRF_SEGMENT_S``): the same for a real record and a simulated replay."""
@@ -297,59 +190,6 @@ def _noise_numbers(data: IOData) -> tuple[float, float, float]:
     y = data.trim(TRANSIENT_FRACTION).y
     f, psd = noise_psd(y)
     return output_std(data), float(f[np.argmax(psd)]), quantisation_step(y)
-
-
-# ---------------------------------------------------------------------- identified modes
-def _continuous(poles: np.ndarray, Ts: float) -> np.ndarray:
-    s = np.log(np.asarray(poles, dtype=complex)) / Ts
-    return s[np.abs(s) > 0]
-
-
-def dominant_mode(poles: np.ndarray, Ts: float) -> Mode:
-    """(ωn [rad/s], ζ) of the slowest complex pole pair (else slowest pole), via s = log(z)/Ts."""
-    s = _continuous(poles, Ts)
-    cplx = s[s.imag > 1e-9]
-    pick = cplx if cplx.size else s
-    p = pick[np.argmin(np.abs(pick))]
-    return float(abs(p)), float(-p.real / abs(p))
-
-
-def complex_modes(poles: np.ndarray, Ts: float) -> list[Mode]:
-    """(ωn [rad/s], ζ) of every complex pole pair, slowest first."""
-    s = _continuous(poles, Ts)
-    return sorted((float(abs(p)), float(-p.real / abs(p))) for p in s[s.imag > 1e-9])
-
-
-def dominant_mode_of(data: IOData) -> Mode:
-    """Dominant mode of the OE(2,2,3) model of a record (trimmed, detrended)."""
-    d = data.trim(TRANSIENT_FRACTION).detrend()
-    return dominant_mode(oe(d, *OE_ORDERS).poles(), d.Ts)
-
-
-def fourth_order_modes_of(data: IOData) -> list[Mode]:
-    """Complex modes of the OE(4,4,5) model of a record (trimmed, detrended, decimated by 2)."""
-    d = data.trim(TRANSIENT_FRACTION).detrend().decimate(FOURTH_DECIMATION)
-    return complex_modes(oe(d, *FOURTH_ORDERS).poles(), d.Ts)
-
-
-def armax_modes_of(data: IOData) -> list[Mode]:
-    """Complex modes of ARMAX [4 4 4 1] on the first half of the record with its mean removed (no trim)."""
-    est, _ = data.detrend().split(0.5)
-    return complex_modes(armax(est, *ARMAX_ORDERS).poles(), data.Ts)
-
-
-def two_modes(modes: list[Mode]) -> tuple[Mode | None, Mode | None]:
-    """The least-damped lightly damped mode in ``SLOW_BAND`` and in ``FAST_BAND`` (None where there is none)."""
-    def pick(band: tuple[float, float]) -> Mode | None:
-        inside = [m for m in modes if band[0] <= m[0] < band[1] and m[1] < LIGHTLY_DAMPED]
-        return min(inside, key=lambda m: m[1]) if inside else None
-    return pick(SLOW_BAND), pick(FAST_BAND)
-
-
-def least_damped(modes: list[Mode], slowest: float = SLOWEST_RESONANCE, fastest: float = FASTEST_RESONANCE) -> Mode:
-    """The mode with the smallest ζ among those with ``slowest`` <= ωn <= ``fastest`` (NaNs if there is none)."""
-    resonances = [m for m in modes if slowest <= m[0] <= fastest]
-    return min(resonances, key=lambda m: m[1]) if resonances else (math.nan, math.nan)
 
 
 def _modes_text(modes: list[Mode]) -> str:
@@ -716,7 +556,8 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
                                                      seed=seed, noise=False)) if armax_check else None,
         frf={rec: compare_frf(lev, rec, root, pairs[rec][0]) for rec in frf_records} or None,
         halves={rec: tuple(halves_db(d) for d in pairs[rec]) for rec in frf_records} or None,
-        split=split or None, gains=gains or None, steps=(stair_steps(stair), stair_steps(sim_stair)),
+        split=split or None, gains=gains or None,
+        steps=(stair_steps(stair, band=GAIN_BAND), stair_steps(sim_stair, band=GAIN_BAND)),
     )
 
 

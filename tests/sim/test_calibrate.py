@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from maglev import refdata
+from maglev.lab import measures
+from maglev.lab.measures import stair_averages
 from maglev.sim import calibrate, checks, sim_vs_real
 from maglev.sim.plant import rig
-from maglev.sim.sim_vs_real import stair_averages
 
 REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
 needs_real = pytest.mark.skipif(not (REAL / refdata.KTH_2022).is_dir(),
@@ -123,7 +124,7 @@ def test_a_shorter_time_base_keeps_the_mains_line_where_the_records_show_it():
     # shortens the time base must leave the line there (white_noise_4's second mode is identified next to it)
     def peak(lev):
         u = np.full(20000, 3.0)
-        return sim_vs_real.noise_psd(lev.simulate(u, seed=2).trim(0.25).y)
+        return measures.noise_psd(lev.simulate(u, seed=2).trim(0.25).y)
     base = rig()
     moved = calibrate.with_dynamics(base, t_phys=0.93 * base.params.t_phys, gamma_lower=0.5)
     assert moved.params.gamma_lower == 0.5 and moved.params.noise_line_hz > base.params.noise_line_hz

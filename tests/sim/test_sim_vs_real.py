@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from maglev.data import IOData
+from maglev.lab import measures
 from maglev.sim import calibrate, checks, sim_vs_real
 from maglev.spectral import FrequencyResponse, frequency_response
 from maglev.sim.plant import DEFAULT_PLANT, rig
@@ -29,7 +30,7 @@ def test_dominant_mode_converts_discrete_poles():
     Ts = 0.001
     s = -30 + 80j
     poles = np.exp(np.array([s, np.conj(s), -400.0]) * Ts)
-    wn, zeta = sim_vs_real.dominant_mode(poles, Ts)
+    wn, zeta = measures.dominant_mode(poles, Ts)
     assert wn == pytest.approx(abs(s)) and zeta == pytest.approx(30 / abs(s))
 
 
@@ -37,17 +38,17 @@ def test_complex_modes_lists_every_pair_slowest_first_and_least_damped_picks_sma
     Ts = 0.002
     s1, s2 = -60 + 200j, -20 + 80j
     poles = np.exp(np.array([s1, np.conj(s1), -5.0, s2, np.conj(s2)]) * Ts)
-    modes = sim_vs_real.complex_modes(poles, Ts)
+    modes = measures.complex_modes(poles, Ts)
     assert [m[0] for m in modes] == pytest.approx([abs(s2), abs(s1)])
     assert [m[1] for m in modes] == pytest.approx([20 / abs(s2), 60 / abs(s1)])
-    assert sim_vs_real.least_damped(modes) == modes[0]
-    assert np.isnan(sim_vs_real.least_damped([])[0])
+    assert measures.least_damped(modes) == modes[0]
+    assert np.isnan(measures.least_damped([])[0])
     drift = (3.0, 0.001)  # a slow, barely damped pair is drift, not the resonance asked for
-    assert sim_vs_real.least_damped([drift] + modes) == modes[0]
+    assert measures.least_damped([drift] + modes) == modes[0]
     # nor is a pair at the Nyquist frequency of records decimated to 2 ms (a pole pair next to z = -1)
-    nyquist = sim_vs_real.complex_modes(np.array([-0.995 + 0.01j, -0.995 - 0.01j]), 0.002)
+    nyquist = measures.complex_modes(np.array([-0.995 + 0.01j, -0.995 - 0.01j]), 0.002)
     assert nyquist[0][0] == pytest.approx(np.pi / 0.002, rel=0.01) and nyquist[0][1] < 0.01
-    assert sim_vs_real.least_damped(nyquist + modes) == modes[0]
+    assert measures.least_damped(nyquist + modes) == modes[0]
 
 
 def _assert_the_lab_checks_hold(cmp: sim_vs_real.Comparison) -> None:
@@ -116,22 +117,22 @@ def test_small_white_noise_leaves_the_rigs_slow_output_mostly_unexplained(full_c
 def test_output_std_parts_are_the_stds_of_consecutive_pieces_after_the_transient():
     # a record of 1200 samples: the first 300 (TRANSIENT_FRACTION) are dropped, the rest is three pieces of
     # ±1, ±2 and ±4 about different means, so the pieces' stds are 1, 2 and 4 and the level is their mean
-    assert sim_vs_real.TRANSIENT_FRACTION == 0.25 and sim_vs_real.STD_PARTS == 3
+    assert measures.TRANSIENT_FRACTION == 0.25 and measures.STD_PARTS == 3
     sign = np.resize([1.0, -1.0], 300)
     y = np.concatenate([np.full(300, 50.0), 5 + sign, 7 + 2 * sign, 9 + 4 * sign])
     data = IOData(u=np.zeros(1200), y=y, Ts=0.001)
-    assert sim_vs_real.output_std_parts(data) == pytest.approx((1.0, 2.0, 4.0), abs=1e-12)
-    assert sim_vs_real.output_level(data) == pytest.approx(7.0, abs=1e-12)
+    assert measures.output_std_parts(data) == pytest.approx((1.0, 2.0, 4.0), abs=1e-12)
+    assert measures.output_level(data) == pytest.approx(7.0, abs=1e-12)
 
 
 def test_hops_are_the_share_and_the_largest_reading_above_the_level_after_the_transient():
     # 400 samples: the first 100 (TRANSIENT_FRACTION) are dropped, so the 20-cm start-up peak does not count;
     # of the 300 kept, 15 read 13 cm and 3 read exactly the level (not above it)
     y = np.full(400, 8.0)
-    y[10], y[200:215], y[300:303] = 20.0, 13.0, sim_vs_real.HOP_LEVEL
+    y[10], y[200:215], y[300:303] = 20.0, 13.0, measures.HOP_LEVEL
     data = IOData(u=np.zeros(400), y=y, Ts=0.001)
-    assert sim_vs_real.hops(data) == pytest.approx((15 / 300, 13.0), abs=1e-12)
-    assert sim_vs_real.hops(data, level=7.0) == pytest.approx((1.0, 13.0), abs=1e-12)
+    assert measures.hops(data) == pytest.approx((15 / 300, 13.0), abs=1e-12)
+    assert measures.hops(data, level=7.0) == pytest.approx((1.0, 13.0), abs=1e-12)
 
 
 def _uniform_record(half_range: float, seed: int, plant) -> IOData:
@@ -176,7 +177,7 @@ def test_stair_steps_give_a_linear_plants_step_overshoot_and_band_rms_at_every_l
     plant = ct.sample_system(ct.tf([80.0 ** 2], [1.0, 32.0, 80.0 ** 2]), 0.001) * ct.tf([1.0], [1.0, 0.0, 0.0], 0.001)
     u = staircase(np.arange(0.0, 5.01, 0.5), 500)
     y = 3.0 + ct.forced_response(plant, U=u).outputs
-    steps = sim_vs_real.stair_steps(IOData(u=u, y=y, Ts=0.001))
+    steps = measures.stair_steps(IOData(u=u, y=y, Ts=0.001))
     assert [(s.u0, s.u1) for s in steps] == [(1.5, 2.0), (2.0, 2.5), (2.5, 3.0), (3.0, 3.5), (3.5, 4.0)]
     overshoot = ct.step_response(plant, T=np.arange(500) * 0.001).outputs.max() - 1.0
     lo, hi = sim_vs_real.GAIN_BAND
@@ -277,8 +278,8 @@ def test_the_2022_records_sit_below_the_staircases_static_curve(full_comparison)
     for rec, (real, sim) in full_comparison.levels.items():
         assert 0.05 <= sim - real <= 0.6, (rec, real, sim)
     stair = load_record("working_region", REAL)
-    u_bar, y_bar = sim_vs_real.stair_averages(stair)
-    constant = sim_vs_real.output_level(load_record("binary_signal_9", REAL))
+    u_bar, y_bar = measures.stair_averages(stair)
+    constant = measures.output_level(load_record("binary_signal_9", REAL))
     assert 0.15 <= y_bar[np.flatnonzero(u_bar == 3.0)[0]] - constant <= 0.3
 
 
@@ -400,8 +401,8 @@ def test_exact_max_db_is_the_median_largest_error_of_n_coherent_bins():
 
 def test_two_modes_picks_the_least_damped_pair_per_band():
     modes = [(20.0, 0.05), (74.0, 0.26), (95.0, 0.4), (218.0, 0.11), (230.0, 0.7), (3400.0, 0.3)]
-    assert sim_vs_real.two_modes(modes) == ((74.0, 0.26), (218.0, 0.11))
-    assert sim_vs_real.two_modes([(124.0, 0.18)]) == ((124.0, 0.18), None)
+    assert measures.two_modes(modes) == ((74.0, 0.26), (218.0, 0.11))
+    assert measures.two_modes([(124.0, 0.18)]) == ((124.0, 0.18), None)
     errs = sim_vs_real.armax_errors(((124.0, 0.18), None), ((74.0, 0.26), (218.0, 0.11)))
     assert errs["slow wn"] == pytest.approx(124 / 74 - 1) and np.isnan(errs["fast zeta"])
 
@@ -410,7 +411,7 @@ def test_two_modes_picks_the_least_damped_pair_per_band():
 @pytest.mark.realdata
 def test_the_rig_shows_two_lightly_damped_armax_modes_and_coherent_frequency_responses(full_comparison):
     # the issue's numbers for binary_signal_2: ≈ 74 rad/s ζ ≈ 0.26 and ≈ 218 rad/s ζ ≈ 0.11
-    slow, fast = sim_vs_real.two_modes(full_comparison.armax[0])
+    slow, fast = measures.two_modes(full_comparison.armax[0])
     assert slow == pytest.approx((74, 0.26), rel=0.03) and fast == pytest.approx((218, 0.11), rel=0.05)
     for rec, c in full_comparison.frf.items():
         assert c.band.sum() >= 40, rec  # a usable band where the real estimate is coherent
@@ -433,7 +434,7 @@ def test_the_start_ups_give_how_far_each_constant_record_throws_the_magnet_from_
     assert real3 == pytest.approx((11.42, 8.77), abs=0.005) and real4 == pytest.approx((15.56, 9.34), abs=0.005)
     for rec, (_, (real, _)) in startups.items():  # the peak within the first samples, then the settled level
         record = load_record(rec, REAL)
-        assert real == (record.y[:sim_vs_real.STARTUP_SAMPLES].max(), sim_vs_real.output_level(record))
+        assert real == (record.y[:sim_vs_real.STARTUP_SAMPLES].max(), measures.output_level(record))
 
 
 @needs_real
@@ -473,10 +474,10 @@ def test_the_simulated_plant_offers_armax_both_modes_the_sensor_noise_line_can_h
     # ARMAX's A polynomial carries the noise's poles too: on the noise-free simulated record it finds
     # both lightly damped modes, and so it does on the noisy record once the sensor's mains-ripple line
     # is removed (same seed, the broadband part of the sensor noise kept)
-    assert all(sim_vs_real.two_modes(full_comparison.armax_noise_free))
+    assert all(measures.two_modes(full_comparison.armax_noise_free))
     real = load_record(sim_vs_real.ARMAX_RECORD, REAL)
     no_line = rig().with_params(noise_line_fraction=0.0).simulate(real.u, Ts=real.Ts, seed=1)
-    assert all(sim_vs_real.two_modes(sim_vs_real.armax_modes_of(no_line)))
+    assert all(measures.two_modes(measures.armax_modes_of(no_line)))
 
 
 @needs_real
