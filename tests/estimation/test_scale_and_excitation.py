@@ -114,3 +114,17 @@ def test_two_sinusoids_are_refused_at_order_6_and_estimated_at_order_4():
     with warnings.catch_warnings():
         warnings.simplefilter("error", ExcitationWarning)  # 4 lag directions, well apart
         E.oe(data, 2, 2, 1)
+
+
+@pytest.mark.parametrize("su, sy", SCALES)
+def test_order_and_delay_selection_do_not_depend_on_the_units(su, sy):
+    """arxstruc's least squares cut columns below eps·N of the largest: with u × 1e-12 the input's
+    columns went, and delayest chose nk = 0 for a system with nk = 2."""
+    from maglev.estimation.selection import arxstruc, delayest, selstruc
+
+    est, val = simulate("oe", 3000, seed=1), simulate("oe", 3000, seed=2)
+    table = arxstruc(est, val, range(1, 5), range(1, 5), range(0, 5))
+    scaled = arxstruc(_scaled(est, su, sy), _scaled(val, su, sy), range(1, 5), range(1, 5), range(0, 5))
+    np.testing.assert_allclose(scaled["loss"], table["loss"] * sy**2, rtol=1e-8)
+    assert selstruc(scaled) == selstruc(table)
+    assert delayest(_scaled(est, su, sy)) == delayest(est) == 2
