@@ -446,7 +446,18 @@ class PolyModel:
 
     @classmethod
     def from_json(cls, text: str) -> "PolyModel":
-        return cls.from_dict(json.loads(text))
+        """The model :meth:`to_json` wrote; text that is no JSON, or nested too deep to read, is refused in one line."""
+        if not isinstance(text, (str, bytes, bytearray)):
+            raise ValueError(f"PolyModel.from_json: expected the JSON text of a model (str), got {type(text).__name__}")
+        try:
+            content = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"PolyModel.from_json: not JSON ({exc.msg} at line {exc.lineno} column {exc.colno}); "
+                             "expected the text PolyModel.to_json writes") from None
+        except RecursionError:
+            raise ValueError("PolyModel.from_json: the JSON is nested too deeply to be a model; "
+                             "expected the text PolyModel.to_json writes") from None
+        return cls.from_dict(content)
 
     # ------------------------------------------------------------------ display
     def summary(self) -> str:

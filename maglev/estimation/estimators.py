@@ -169,6 +169,19 @@ def _checked(data: IOData, spec: PolySpec, initial_condition: str) -> tuple[np.n
     return data.y, data.u
 
 
+def _checked_init(spec: PolySpec, init):
+    """A warm start that is a PolyModel or numbers; anything else (a string, a dict) is named as such."""
+    if isinstance(init, PolyModel):
+        return init
+    try:
+        if isinstance(init, (str, bytes, dict)):
+            raise TypeError
+        return np.asarray(init, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{spec.label}: init must be a PolyModel or a vector of its {spec.n_params} parameters "
+                         f"[a b c d f], got {init!r}") from None
+
+
 MAX_RMS = 1e100  # the data's squares and their sums over N samples stay far inside float64 (1e±308)
 
 
@@ -278,7 +291,7 @@ def _pem(
     _check_scale(data)
     y, u = _checked(data, spec, initial_condition)
     y, u, scale = _normalised(spec, y, u)
-    candidates = [scale.scaled(nested_theta(spec, init))] if init is not None else []
+    candidates = [scale.scaled(nested_theta(spec, _checked_init(spec, init)))] if init is not None else []
     candidates += starts(spec, y, u)
     fit_states = _wants_states(spec, candidates, y, u, initial_condition)
     more = None if init is not None else lambda: more_starts(spec, y, u, fit_states, max_iterations, tolerance)
