@@ -33,7 +33,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, datasets, render, tracking
+from maglev.study import claims, datasets, environment, render, tracking
 from maglev.study.config import StudyConfigError, check, task_config
 
 log = logging.getLogger("maglev.study")
@@ -187,6 +187,8 @@ class SweepCallback(Callback):
         else:
             self.parent = client.create_run(exp_id, run_name=name, tags=tags).info.run_id
             self.fresh = True
+            tracking.log_files(client, self.parent,  # what `pip install -r` needs to rebuild the environment
+                               {environment.ARTIFACT: environment.requirements(environment.current())})
         sweep_dir.mkdir(parents=True, exist_ok=True)
         (sweep_dir / tracking.PARENT_FILE).write_text(self.parent)
         os.environ[tracking.PARENT_ENV] = self.parent
