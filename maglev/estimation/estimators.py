@@ -36,6 +36,7 @@ noise variance is λ̂ = N·V/(N−d) and the covariance λ̂ (JᵀJ)⁻¹.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -208,7 +209,7 @@ def _check_scale(data: IOData) -> None:
 
 @dataclass(frozen=True)
 class _Scale:
-    """Estimation runs on u/su and y/sy (their RMS), so its tolerances and rank tests see numbers
+    """Estimation runs on u/su and y/sy (about their RMS), so its tolerances and rank tests see numbers
     near 1 whatever the units; only B (by sy/su) and the residuals (by sy) carry the scales back."""
 
     theta: np.ndarray  # parameter k of the data's model = theta[k] × parameter k of the scaled data's
@@ -223,8 +224,11 @@ class _Scale:
 
 
 def _normalised(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, _Scale]:
-    """y and u divided by their RMS (1 for an all-zero signal), and how to undo it."""
-    sy, su = (_rms(x) or 1.0 for x in (y, u))
+    """y and u divided by the power of two nearest their RMS (1 for an all-zero signal), and how to undo it.
+
+    A power of two changes no digit: estimation on data whose RMS is near 1 gives the same numbers
+    as without the scaling, bit for bit, and the scales are carried back exactly."""
+    sy, su = (2.0 ** round(math.log2(rms)) if rms > 0 else 1.0 for rms in (_rms(y), _rms(u)))
     theta = np.ones(spec.n_params)
     theta[spec.na : spec.na + spec.nb] = sy / su
     return y / sy, u / su, _Scale(theta, sy)
