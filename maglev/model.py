@@ -311,7 +311,9 @@ class PolyModel:
         ``predict`` do: the n = max(deg A·F·D, deg B·D, deg C·F) pre-sample values of the
         difference equation A F D y = B D u + C F e, whatever k (for ARX the pre-sample
         outputs and inputs, n = max(na, nb+nk−1)).  So the first n one-step errors vanish,
-        the k-step FIT falls with k towards the simulation FIT, and never climbs back.
+        and the k-step errors tend to the simulation errors as k grows: the true model's
+        k-step FIT falls with k to its simulation FIT (a model far from the plant may dip
+        below its simulation FIT at intermediate horizons).
         Simulation fits the free response of G = B/(A F) to the simulation error (for ARX
         the na pre-sample outputs and nb+nk−1 pre-sample inputs).
         """

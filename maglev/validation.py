@@ -5,8 +5,8 @@ FIT = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), and checks residual whiteness
 from the input (``resid``).  ``compare`` and ``resid`` follow MATLAB: the model's
 initial state is fitted to the data by least squares unless told otherwise (for ARX
 the pre-sample outputs and inputs, so the first max(na, nb+nk−1) one-step residuals
-vanish); a longer horizon fits the same number of values, so the k-step FIT falls
-towards the simulation FIT — see ``PolyModel.predict``.
+vanish); a longer horizon fits the same number of values, so the k-step FIT tends
+to the simulation FIT — see ``PolyModel.predict``.
 """
 
 from __future__ import annotations
