@@ -244,11 +244,16 @@ LENGTH_RULE = (
     f"{VAL_MIN_S:g} s of validation data, else in the ratio {EST_MIN_S:g} : {VAL_MIN_S:g} with a caution.")
 
 
-def length_decision(rows: Sequence[dict], forced: bool = False) -> Decision:
+def length_decision(rows: Sequence[dict]) -> Decision:
     """The data-length decision from one row per dataset: ``dataset``, ``transient_s`` (detected), ``trim_s``
     and ``split`` (used), ``est_s``, ``val_s``.  A caution names every dataset below the lab's minimum and
-    every trim shorter than the detected transient."""
+    every trim shorter than the detected transient; a trim other than the detected transient was set by the
+    config (``forced``)."""
     choice, reasons, cautions = {}, [], []
+    set_by_config = [r["dataset"] for r in rows if abs(r["trim_s"] - r["transient_s"]) > 1e-9]
+    if set_by_config:
+        reasons.append(f"The trim of {', '.join(set_by_config)} is set by the config (dataset.preprocess.trim), "
+                       "not the detected start transient beside it.")
     for r in rows:
         name = r["dataset"]
         choice[name] = {"trim_s": r["trim_s"], "est_s": r["est_s"], "val_s": r["val_s"], "split": r["split"]}
@@ -263,8 +268,8 @@ def length_decision(rows: Sequence[dict], forced: bool = False) -> Decision:
         if r["trim_s"] + 1e-9 < r["transient_s"]:
             cautions.append(f"{name}: the trim {r['trim_s']:.2f} s is shorter than the detected start transient "
                             f"{r['transient_s']:.2f} s.")
-    return Decision("data_length", LENGTH_RULE, choice, [dict(r) for r in rows], reasons, forced=forced,
-                    cautions=cautions)
+    return Decision("data_length", LENGTH_RULE, choice, [dict(r) for r in rows], reasons,
+                    forced=bool(set_by_config), cautions=cautions)
 
 
 ALPHA_TOLERANCE = 0.02
