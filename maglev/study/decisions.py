@@ -218,9 +218,29 @@ def sim_records(datasets: list[dict], wr: WorkingRegion, data_dir: str) -> Decis
                     + [f"{a.name}: " + "; ".join(a.refusals) + "." for a in assessed if a.refusals])
 
 
-def sweep_decisions(task: dict, jobs: list[dict], wr: WorkingRegion, u_sat: float | None) -> dict[str, Decision]:
-    """The pre-run decisions of a sweep (working region, records, data length, α) from its task config, its
-    jobs' configs, the staircase's working region and the physical model's saturation current."""
+def delay_of(datasets: list[dict], data_dir: str, response, max_order: int, max_delay: int,
+             configured: int | None) -> Decision:
+    """The delay decision (:func:`maglev.lab.delay.delay_decision`) over the sweep's datasets, with the
+    staircase's averaged step ``response`` (recorded samples; None without one)."""
+    from maglev.estimation.selection import delayest
+    from maglev.lab.delay import dead_time, delay_decision
+    from maglev.study.datasets import load
+
+    parts, de = [], {}
+    for ds in datasets:
+        prep = load(ds, data_dir)
+        parts.append((ds["name"], prep.est, prep.val))
+        de[ds["name"]] = delayest(prep.est, 2, 2, 0, max_delay)
+    k = int(datasets[0]["preprocess"]["decimate"])
+    dead = None if response is None else dead_time(response) / k
+    return delay_decision(parts, dead, de, max_order, configured)
+
+
+def sweep_decisions(task: dict, jobs: list[dict], wr: WorkingRegion, u_sat: float | None,
+                    step_response=None) -> dict[str, Decision]:
+    """The pre-run decisions of a sweep (working region, records, data length, α, delay) from its task
+    config, its jobs' configs, the staircase's working region, the physical model's saturation current and
+    the staircase's averaged step response."""
     from maglev.lab.working_region import region_decision
 
     data_dir = task["data_dir"]
@@ -238,4 +258,7 @@ def sweep_decisions(task: dict, jobs: list[dict], wr: WorkingRegion, u_sat: floa
     alphas = alpha_rows(datasets, data_dir)
     if alphas:
         out["alpha"] = alpha_decision(alphas)
+    nks = {int(cfg["structure"]["nk"]) for cfg in jobs} or {int(task["structure"]["nk"])}
+    out["delay"] = delay_of(datasets, data_dir, step_response, int(task["lab"]["max_order"]),
+                            int(task["lab"]["max_delay"]), nks.pop() if len(nks) == 1 else None)
     return out

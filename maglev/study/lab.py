@@ -53,7 +53,7 @@ def lab_steps(cfg: dict, jobs: list[dict] | None = None) -> tuple[dict, dict, di
     # α is a probability per recorded sample: the band is taken on the recorded (not decimated) axis
     spec, alpha = alpha_star_of(prep.raw, int(ds["preprocess"]["trim"]), float(lab["energy_fraction"]))
     orders = order_selection(prep, int(lab["max_order"]), int(lab["max_delay"]))
-    decisions = sweep_decisions(cfg, jobs or [cfg], wr, rig(plant).params.i_sat)
+    decisions = sweep_decisions(cfg, jobs or [cfg], wr, rig(plant).params.i_sat, rt.response)
     metrics = {
         "lab.u_min": wr.u_min, "lab.u_max": wr.u_max, "lab.u_star": wr.u_star, "lab.slope": wr.slope,
         "lab.rise_time_samples": rt.samples, "lab.rise_time_s": rt.seconds,
