@@ -262,3 +262,42 @@ def sweep_decisions(task: dict, jobs: list[dict], wr: WorkingRegion, u_sat: floa
     out["delay"] = delay_of(datasets, data_dir, step_response, int(task["lab"]["max_order"]),
                             int(task["lab"]["max_delay"]), nks.pop() if len(nks) == 1 else None)
     return out
+
+
+# ------------------------------------------------------------------------------------- orders, after the runs
+PHYSICS_ORDER = 4  # states of the physical model (two masses, positions and velocities: plant-physics notes)
+
+
+def orders_of_table(table) -> Decision | None:
+    """The orders decision (:func:`maglev.lab.orders.orders_decision`) of a ranked sweep's table: per structure
+    the mean validation simulation FIT and AIC by order over the datasets swept at every order (as
+    :func:`maglev.study.cautions.order_choice` averages them); None with fewer than two orders."""
+    from maglev.lab.orders import orders_decision
+
+    if table is None or table.empty or not {"structure", "order", "dataset", "val_fit_sim"} <= set(table):
+        return None
+    fit, aic = {}, {}
+    for st, runs in table.groupby("structure", sort=False):
+        by = runs.pivot_table(index="dataset", columns="order", values="val_fit_sim", aggfunc="mean").dropna()
+        if by.shape[1] < 2 or by.empty:
+            continue
+        fit[str(st)] = {int(o): float(v) for o, v in by.mean().sort_index().items()}
+        if "aic" in runs:
+            a = runs[runs["dataset"].isin(by.index)].groupby("order")["aic"].mean()
+            aic[str(st)] = {int(o): float(v) for o, v in a.items() if int(o) in fit[str(st)]}
+    return orders_decision(fit, aic, PHYSICS_ORDER) if fit else None
+
+
+def log_orders(client, parent_id: str, table) -> dict | None:
+    """Add the orders decision of the ranked ``table`` to the parent run's ``lab/decisions.json`` (logged again,
+    whole); returns the file's content (None when there is no orders decision)."""
+    from maglev.lab.decision import write_decisions
+    from maglev.study.store import artifact_json
+    from maglev.study.tracking import log_files
+
+    dec = orders_of_table(table)
+    if dec is None:
+        return None
+    content = {**(artifact_json(client, parent_id, "lab/decisions.json") or {}), **write_decisions([dec])}
+    log_files(client, parent_id, {"lab/decisions.json": content})
+    return content
