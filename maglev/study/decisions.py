@@ -276,7 +276,9 @@ def orders_of_table(table) -> Decision | None:
 
     if table is None or table.empty or not {"structure", "order", "dataset", "val_fit_sim"} <= set(table):
         return None
-    fit, aic = {}, {}
+    from maglev.study.cautions import _bla_by_order
+
+    fit, aic, bla = {}, {}, {}
     for st, runs in table.groupby("structure", sort=False):
         by = runs.pivot_table(index="dataset", columns="order", values="val_fit_sim", aggfunc="mean").dropna()
         if by.shape[1] < 2 or by.empty:
@@ -285,7 +287,8 @@ def orders_of_table(table) -> Decision | None:
         if "aic" in runs:
             a = runs[runs["dataset"].isin(by.index)].groupby("order")["aic"].mean()
             aic[str(st)] = {int(o): float(v) for o, v in a.items() if int(o) in fit[str(st)]}
-    return orders_decision(fit, aic, PHYSICS_ORDER) if fit else None
+        bla[str(st)] = _bla_by_order(runs)[0]
+    return orders_decision(fit, aic, PHYSICS_ORDER, bla=bla) if fit else None
 
 
 def log_orders(client, parent_id: str, table) -> dict | None:
