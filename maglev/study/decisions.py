@@ -291,16 +291,12 @@ def orders_of_table(table) -> Decision | None:
     return orders_decision(fit, aic, PHYSICS_ORDER, bla=bla) if fit else None
 
 
-def log_orders(client, parent_id: str, table) -> dict | None:
-    """Add the orders decision of the ranked ``table`` to the parent run's ``lab/decisions.json`` (logged again,
-    whole); returns the file's content (None when there is no orders decision)."""
+def with_orders(content: dict | None, table) -> dict | None:
+    """A ``decisions.json`` content with the orders decision of the ranked ``table`` added (None when there is
+    no orders decision); the caller logs it on the parent run again, whole."""
     from maglev.lab.decision import write_decisions
-    from maglev.study.store import artifact_json
-    from maglev.study.tracking import log_files
 
     dec = orders_of_table(table)
     if dec is None:
         return None
-    content = {**(artifact_json(client, parent_id, "lab/decisions.json") or {}), **write_decisions([dec])}
-    log_files(client, parent_id, {"lab/decisions.json": content})
-    return content
+    return {**(content or {}), **write_decisions([dec])}
