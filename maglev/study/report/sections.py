@@ -109,7 +109,7 @@ def working_region(lab: dict, lab_png: dict, ts_used: list[float], decisions: di
             f"neighbour-to-neighbour slope within 0.5–1.5 times its slope): <b>ū ∈ [{num(g('lab.u_min'))}, "
             f"{num(g('lab.u_max'))}] A</b>, slope {num(g('lab.slope'), 3)} {Y_UNIT}/{U_UNIT}, working point "
             f"<b>u* = (u_min + u_max)/2 = {num(g('lab.u_star'))} A</b>. Below it the lower magnet still rests on its "
-            "seat, above it the current regulator saturates, so the slope changes there (figure beside).")
+            "seat, above it the current regulator saturates, so the slope changes there, as the figure beside shows.")
     sampling = (f"Sampling: the 10–90 % rise time of steps inside the region is {num(g('lab.rise_time_samples'), 1)} "
                 f"samples = {num(1000 * g('lab.rise_time_s'), 1)} ms, so 4–10 samples per rise time allow "
                 f"Ts ∈ [{num(1000 * g('lab.Ts_min'), 2)}, {num(1000 * g('lab.Ts_max'), 2)}] ms; the models use "

@@ -36,6 +36,7 @@ GRADING: list[tuple[str, tuple[str, ...]]] = [
      ("best-vs-worst",)),
 ]
 
+TITLE = "10. Grading template"
 _SECTION = re.compile(r"<section id='([^']+)'><h2>(.*?)</h2>(.*?)</section>", re.S)
 
 
@@ -57,7 +58,8 @@ def grading_template(page: str) -> str:
     found = sections_of(page)
 
     def where(anchors: tuple[str, ...]) -> str:
-        return ", ".join(f"<a href='#{a}'>{html.escape(found[a][0]) if a in found else a}</a>" for a in anchors)
+        return ", ".join(f"<a href='#{a}'>{html.escape(found[a][0]) if a in found else TITLE if a == 'grading-template' else a}"
+                         "</a>" for a in anchors)
 
     rows = [("Author names and personal numbers", "–", "to be filled in by the authors")]
     rows += [(q, where(a), "yes" if answered(page, a) else "NO") for q, a in GRADING]
@@ -65,7 +67,7 @@ def grading_template(page: str) -> str:
             for item, a in REQUIRED]
     body = "".join(f"<tr><td style='text-align:left'>{html.escape(q)}</td><td style='text-align:left'>{w}</td>"
                    f"<td>{s}</td></tr>" for q, w, s in rows + must)
-    return ("<section id='grading-template'><h2>10. Grading template</h2>\n<p>The lab's grading template and §5's "
+    return (f"<section id='grading-template'><h2>{TITLE}</h2>\n<p>The lab's grading template and §5's "
             "list of what the report must include, with the section answering each (\"yes\": the section is there "
             "and not empty).</p><table class='t'><tr><th>template item</th><th>answered in</th><th>there</th></tr>"
             + body + "</table></section>\n")

@@ -310,9 +310,20 @@ def conclusion(table: pd.DataFrame, slope: float | None = None) -> Conclusion:
     if "dcgain" in sim and slope and math.isfinite(slope):
         lines[-1] += (f" Its static gain {sim['dcgain']:.3f} cm/A is {100 * (sim['dcgain'] / slope - 1):+.0f} % from "
                       f"the staircase slope {slope:.3f} cm/A.")
+        off = abs(sim["dcgain"] / slope - 1.0)
+        matching = table[(table["dcgain"] / slope - 1.0).abs() <= GAIN_TOL]
+        if off > GAIN_TOL and not matching.empty:
+            alt = matching.loc[matching["val_fit_sim"].idxmax()]
+            lines.append(f"Where the static response matters, {alt['name']} is the better choice: its static gain "
+                         f"{alt['dcgain']:.3f} cm/A is within {GAIN_TOL:.0%} of the slope, and it simulates "
+                         f"{alt['val_dataset']} at {alt['val_fit_sim']:.2f} %.")
     if sim["name"] != top["name"]:
+        same = table[table["val_dataset"] == top["val_dataset"]]
+        rival = same.loc[same["val_fit_sim"].idxmax()]
         lines.append(f"The #1 by one-step FIT, {top['name']}, simulates at {top['val_fit_sim']:.2f} %: its one-step "
-                     "FIT comes from the noise model's use of past outputs, not from G.")
+                     "FIT comes from the noise model's use of past outputs, not from G"
+                     + (f"; on the same validation data {rival['name']} (#{int(rival['rank'])}) simulates at "
+                        f"{rival['val_fit_sim']:.2f} %." if rival["name"] != top["name"] else "."))
     if gain >= NAIVE_MARGIN:
         prediction = str(top["name"])
         lines.append(f"For one-step prediction use {top['name']}: FIT {top['val_fit']:.2f} % on "
