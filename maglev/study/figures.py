@@ -126,12 +126,14 @@ def orders_figure(runs: pd.DataFrame) -> Figure:
 
 
 def preparation_figure(lin, blas: dict) -> Figure:
-    """|G| of the small-signal Jacobian (``lin``: :class:`maglev.sim.plant.LinearModel`) and of the best linear
-    approximation of each input class (``blas``: dataset name → :class:`maglev.sim.bla.BLA`)."""
+    """|G| of a linearisation at the working point (``lin``: :class:`maglev.sim.plant.LinearModel`) and of the best
+    linear approximation of each input class (``blas``: dataset name → :class:`maglev.sim.bla.BLA`); the title
+    promises BLAs only when there are some."""
     curves = [ref.bounds(LEVEL, f"BLA, {name}") for name, ref in blas.items()]
     import control as ct
 
-    jac = ct.ss(lin.sys_d.A, lin.sys_d.B, lin.sys_d.C, lin.sys_d.D, lin.sys_d.dt, name="small-signal Jacobian")
+    jac = ct.ss(lin.sys_d.A, lin.sys_d.B, lin.sys_d.C, lin.sys_d.D, lin.sys_d.dt, name="linearisation at u*")
     fig = plot_bode(curves or [jac], true_system=jac if curves else None)
-    fig.axes[0].set_title("Linearisation at the working point and best linear approximations", fontsize="medium")
+    fig.axes[0].set_title("Linearisation at the working point" + (" and best linear approximations" if curves else
+                                                                  " (no simulated dataset: no BLA)"), fontsize="medium")
     return fig
