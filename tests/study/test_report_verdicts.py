@@ -180,3 +180,25 @@ def test_explained_share_is_the_variance_a_simulation_fit_accounts_for():
     assert v.explained_share(100.0) == 1.0 and v.explained_share(0.0) == 0.0 and v.explained_share(-1.3) == 0.0
     assert v.explained_share(50.0) == pytest.approx(0.75)
     assert math.isnan(v.explained_share(math.nan))
+
+
+def test_a_logged_lab_decision_is_printed_in_its_section_with_rule_choice_and_evidence():
+    """The decisions the sweep logs (lab/decisions.json, maglev.lab.decision) appear in their §5 sections: rule,
+    choice and reasons there; a short evidence table there too, a long one in Appendix E."""
+    from maglev.lab.decision import Decision
+    from maglev.study.report.sections import EVIDENCE_ROWS, decision, decisions_evidence
+
+    short = Decision(name="delay", rule="largest nk whose residuals stay white", choice={"nk": 2, "Ts": 0.002},
+                     evidence=[{"nk": k, "outside": 0.5 * k} for k in range(1, 4)], reasons=["nk = 3 fails <x>"])
+    long = Decision(name="records", rule="inside the region", choice={"uniform": ["a", "b"], "binary": ["c"]},
+                    evidence=[{"record": f"r{i}", "inside": i % 2 == 0} for i in range(EVIDENCE_ROWS + 3)])
+    decisions = {"delay": short, "records": long}
+    html = decision(decisions, "delay")
+    assert "rule: largest nk whose residuals stay white; choice: nk: 2, Ts: 0.002" in html
+    assert "why: nk = 3 fails &lt;x&gt;" in html and html.count("<tr>") == 4  # header + 3 evidence rows
+    html = decision(decisions, "records")
+    assert "choice: uniform: a, b, binary: c" in html and f"evidence: {EVIDENCE_ROWS + 3} rows, Appendix E" in html
+    assert "<tr>" not in html
+    appendix = decisions_evidence(decisions)
+    assert "<h3>records</h3>" in appendix and appendix.count("<tr>") == EVIDENCE_ROWS + 4 and "<h3>delay" not in appendix
+    assert decision(decisions, "orders") == "" and decision({}, "delay") == ""

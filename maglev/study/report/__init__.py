@@ -28,7 +28,7 @@ from maglev.study.store import SweepError, artifact_bytes, artifact_json, load_m
 from maglev.study.tracking import log_files
 
 LAB_FIGURES = ("working_region.png", "rise_time.png", "output_spectrum.png", "alpha.png", "orders.png")
-DECISIONS = ("decisions.json", "lab/decisions.json")  # where a sweep logs its lab decisions (one JSON artifact)
+DECISIONS = "lab/decisions.json"  # the parent run's lab decisions (maglev.lab.decision: one JSON artifact)
 CSS = """
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.4}
 h1{font-size:1.5em} h2{border-bottom:2px solid #ccc;padding-bottom:.2em;margin-top:1.6em} h3{margin:.6em 0 .1em}
@@ -67,17 +67,11 @@ def lab_steps(ranking: Ranking) -> tuple[dict, dict]:
 
 
 def lab_decisions(ranking: Ranking) -> dict:
-    """The sweep's lab decisions by name (``decisions.json`` on the parent run: a list of ``{name, rule, choice,
-    evidence, reasons, forced}``, or a dict by name); {} when the sweep logged none."""
-    sweep = ranking.sweep
-    for path in DECISIONS:
-        found = artifact_json(sweep.client, sweep.parent_id, path)
-        if found:
-            entries = found.get("decisions", found) if isinstance(found, dict) else found
-            if isinstance(entries, dict):
-                return {str(k): v for k, v in entries.items()}
-            return {str(d["name"]): d for d in entries if isinstance(d, dict) and "name" in d}
-    return {}
+    """The sweep's lab decisions by name (:class:`maglev.lab.decision.Decision`, from the parent run's
+    ``lab/decisions.json``); {} when the sweep logged none."""
+    from maglev.lab.decision import read_decisions
+
+    return read_decisions(artifact_json(ranking.sweep.client, ranking.sweep.parent_id, DECISIONS))
 
 
 def physics(ranking: Ranking, lab: dict, ts_used: list[float]):
@@ -146,7 +140,7 @@ def build(ranking: Ranking, ranking_run: str) -> str:
                       + ("beside the best linear approximation of each simulated dataset's input class (shaded: its "
                          "99 % band)." if blas else "(this sweep has no simulated dataset, so no simulator BLA).")))
     appendix = ["<h1 id='appendix'>Appendices</h1>", sec.attached_code(), sec.cautions(ranking.cautions),
-                sec.all_runs(ranking, models), sec.extra_figures(extra)]
+                sec.all_runs(ranking, models), sec.extra_figures(extra), sec.decisions_evidence(decisions)]
     body = "".join(main)
     body += grading_template(body + "".join(appendix))
     page = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>maglev report: "

@@ -75,18 +75,40 @@ def bullets(items: Iterable[str]) -> str:
     return "<ul>" + "".join(f"<li>{i}</li>" for i in items) + "</ul>"
 
 
+EVIDENCE_ROWS = 6  # a decision's evidence table stays in its section up to this many rows, else goes to Appendix E
+
+
 def decision(decisions: dict | None, name: str) -> str:
-    """A lab decision logged by the sweep (``decisions.json``: ``{name, rule, choice, evidence, reasons, forced}``)
-    as its rule, choice and reasons, with its evidence as a small table; "" when the sweep logged none."""
+    """A lab decision the sweep logged (``lab/decisions.json``, :class:`maglev.lab.decision.Decision`): its rule,
+    choice, reasons and cautions, with its evidence table when it is short (Appendix E holds the long ones);
+    "" when the sweep logged none of that name."""
     d = (decisions or {}).get(name)
-    if not d:
+    if d is None:
         return ""
-    text = (f"<b>Decision {esc(name)}</b>: rule: {esc(d.get('rule', '–'))}; choice: <b>{esc(d.get('choice', '–'))}</b>"
-            + (" (forced by the configuration)" if d.get("forced") else "") + ".")
-    reasons = d.get("reasons") or []
-    evidence = d.get("evidence") or []
-    return (para(text) + (bullets(esc(r) for r in reasons) if reasons else "")
-            + (table(pd.DataFrame(evidence), 3) if evidence and isinstance(evidence[0], dict) else ""))
+    rows = d.rows()
+    text = "; ".join(f"{label}: {value}" for label, value in rows if label in ("rule", "choice"))
+    extra = [f"{label}: {value}" for label, value in rows if label not in ("rule", "choice")]
+    header, cells = d.table_rows()
+    short = 0 < len(cells) <= EVIDENCE_ROWS
+    return (para(f"<b>Decision {esc(name)}</b> — {text}"
+                 + ("" if short or not cells else f" (evidence: {len(cells)} rows, Appendix E)") + ".")
+            + (bullets(extra) if extra else "") + (evidence_table(header, cells) if short else ""))
+
+
+def evidence_table(header: list[str], cells: list[list[str]]) -> str:
+    """A decision's evidence rows (already escaped) as a table."""
+    return ("<table class='t'><tr>" + "".join(f"<th>{h}</th>" for h in header) + "</tr>"
+            + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in cells) + "</table>")
+
+
+def decisions_evidence(decisions: dict | None) -> str:
+    """Appendix E: the evidence of every decision too long to print in its section."""
+    parts = []
+    for name, d in (decisions or {}).items():
+        header, cells = d.table_rows()
+        if len(cells) > EVIDENCE_ROWS:
+            parts.append(f"<h3>{esc(name)}</h3>" + evidence_table(header, cells))
+    return section("decisions-evidence", "E. Evidence of the lab decisions", *parts) if parts else ""
 
 
 # ---------------------------------------------------------------------------- analysis helpers
