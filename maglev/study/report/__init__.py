@@ -40,14 +40,14 @@ figcaption{font-size:.85em;color:#444} .missing{color:#a00} nav a{margin-right:1
 pre{font-size:.8em;background:#f7f7f7;padding:.4em;overflow-x:auto} #appendix{margin-top:3em}
 @page{size:A4;margin:11mm 11mm 12mm 11mm}
 @media print{
- body{font-size:8.5pt;line-height:1.25;max-width:none;margin:0;padding:0}
+ body{font-size:8.2pt;line-height:1.22;max-width:none;margin:0;padding:0}
  nav,.screen{display:none} h1{font-size:12pt;margin:0 0 .2em} .meta{font-size:7pt}
  h2{font-size:10.2pt;margin:.7em 0 .25em;break-after:avoid} h3{font-size:8.9pt;break-after:avoid}
  p{margin:.25em 0} ul{margin:.2em 0;padding-left:1.3em} li{margin:.05em 0}
- table.t{font-size:7.3pt;margin:.25em 0;break-inside:avoid} table.t td,table.t th{padding:0 3px}
- figure{break-inside:avoid;margin:.2em 0} figcaption{font-size:7.3pt} .row{gap:.6em}
- figure img{max-height:62mm;width:auto;max-width:100%;display:block;margin:0 auto}
- figure.wide img{max-height:72mm} figure.side{width:42%}
+ table.t{font-size:7pt;margin:.25em 0;break-inside:avoid} table.t td,table.t th{padding:0 3px}
+ figure{break-inside:avoid;margin:.2em 0} figcaption{font-size:7pt} .row{gap:.6em}
+ figure img{max-height:58mm;width:auto;max-width:100%;display:block;margin:0 auto}
+ figure.wide img{max-height:60mm} figure.full img{max-height:50mm} figure.side{width:42%}
  #appendix{break-before:page;margin-top:0} pre{font-size:6.6pt;white-space:pre-wrap}
 }
 """

@@ -75,7 +75,7 @@ def bullets(items: Iterable[str]) -> str:
     return "<ul>" + "".join(f"<li>{i}</li>" for i in items) + "</ul>"
 
 
-EVIDENCE_ROWS = 6  # a decision's evidence table stays in its section up to this many rows, else goes to Appendix E
+EVIDENCE_ROWS = 4  # a decision's evidence table stays in its section up to this many rows, else goes to Appendix E
 
 
 def decision(decisions: dict | None, name: str) -> str:
@@ -151,7 +151,7 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decis
     u_lo, u_hi = lab.get("lab.u_min", math.nan), lab.get("lab.u_max", math.nan)
     u_star = lab.get("lab.u_star", math.nan)
     alpha_star = lab.get("lab.alpha_star", math.nan)
-    rows, why = [], []
+    why = []
     for name, prep in datasets.items():
         ds = configs[name]["dataset"]
         trim = int(ds["preprocess"]["trim"])
@@ -160,9 +160,6 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decis
         inside = lo >= u_lo - 1e-9 and hi <= u_hi + 1e-9
         cover = (hi - lo) / (u_hi - u_lo) if u_hi > u_lo else math.nan
         alpha = ds.get("alpha") if ds["input_class"] == "binary" else None
-        rows.append({"dataset": name, "class": ds["input_class"], "u min (A)": lo, "u max (A)": hi,
-                     "mean u (A)": prep.u0, "std u (A)": float(np.std(u)), "inside region": "yes" if inside else "NO",
-                     "share of width": cover, "α": alpha})
         text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): [{num(lo)}, {num(hi)}] A, "
                 f"{num(100 * cover, 0)} % of the working region's width, mean {num(prep.u0)} A "
                 f"({num(prep.u0 - u_star, 2)} A from u*); " + ("inside the working region" if inside else
@@ -190,7 +187,7 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decis
                                       "dataset against ω/π; the shaded band holds 80 % of its energy.", "half")
             + img(lab_png.get("alpha.png"), "Spectrum Φ_s(ω) of a unit binary signal for the lab's α values "
                   "(the lab's Fig. 5), with the output's band shaded.", "half") + "</div>")
-    return section("inputs", "3. Input signals", para(head), bullets(why), table(pd.DataFrame(rows)), spectrum,
+    return section("inputs", "3. Input signals", para(head), bullets(why), spectrum,
                    decision(decisions, "records"), decision(decisions, "alpha"), figs)
 
 
@@ -275,7 +272,10 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
         entry = get_structure(st)
         text = f"<b>{esc(st.upper())}</b> {esc(entry.equation)}. "
         oc = order_choice(runs)
-        if oc is None:
+        chosen = (decisions or {}).get("orders")
+        if chosen is not None and isinstance(chosen.choice, dict) and st in chosen.choice:
+            text += f"Order <b>{esc(chosen.choice[st])}</b>, by the orders decision below."
+        elif oc is None:
             text += f"One order swept ({esc(', '.join(sorted(set(runs['orders']))))}): no choice to motivate."
         else:
             listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
@@ -287,9 +287,9 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
                 text += f"; higher orders add at most {ORDER_MARGIN:g} point."
             else:
                 text += ", inside the swept orders."
-            undermined = away_from_bla(oc)
-            if undermined:
-                text += " " + esc(undermined)
+        undermined = away_from_bla(oc) if oc is not None else ""
+        if undermined:
+            text += " " + esc(undermined)
         n_cancel = sum(len(models[i].near_cancellations(tol)) for i in runs["run_id"])
         if n_cancel:
             text += f" {n_cancel} near pole-zero cancellation(s) (|p−z| &lt; {tol}) among its models: orders the data do not support."
@@ -340,7 +340,7 @@ def binary_vs_uniform(ranking, lab: dict) -> str:
     parts.append(bullets(esc(x) for x in cc.sentences[1:]))
     parts.append(img(ranking.files.get("binary_vs_uniform/fit.png"),
                      f"{st.upper()}: one-step FIT (%) of each model on its own validation data (left; binary hatched, "
-                     "axis from 0) and of every compared model on every validation set (right)."))
+                     "axis from 0) and of every compared model on every validation set (right).", "full"))
     return section("binary-vs-uniform", title, *parts)
 
 
@@ -388,11 +388,6 @@ def best_vs_worst(ranking, models_all: dict, lab: dict, physics_modes: list | No
                   " — the reverse of the one-step ranking: the best's one-step FIT comes from its noise model's use "
                   "of past outputs, not from G."))
     pz = [v.pole_zero_text(f, physics_modes, peak_frequency(refs.get(f.val_dataset))) for f in (fb, fw)]
-    rows = [{"quantity": "one-step FIT (%)", "best": fb.val_fit, "worst": fw.val_fit},
-            {"quantity": "simulation FIT (%)", "best": fb.val_fit_sim, "worst": fw.val_fit_sim},
-            {"quantity": "output share the input explains (%)", "best": 100 * fb.explained, "worst": 100 * fw.explained},
-            {"quantity": "static gain (cm/A)", "best": fb.dcgain, "worst": fw.dcgain},
-            {"quantity": "distance to the BLA (relative)", "best": fb.bla_err, "worst": fw.bla_err}]
     figs = ("<div class='row'>" + img(ranking.files.get("best_vs_worst/bode.png"),
                                       "Bode diagrams of G of the best and worst model; shaded bands: 99 % confidence "
                                       "regions from the estimated parameter covariance.", "half")
@@ -403,8 +398,7 @@ def best_vs_worst(ranking, models_all: dict, lab: dict, physics_modes: list | No
                   "(right): autocorrelation of the residuals (top) and their cross-correlation with the input "
                   "(bottom); shaded bands: the 99 % confidence band of white, input-independent residuals.", "wide"))
     return section("best-vs-worst", "8. Best vs worst model", para(head), para(verdict),
-                   bullets(esc(s) for _, _, s in bw.checks), para("Pole-zero analysis: " + esc(" ".join(pz))),
-                   table(pd.DataFrame(rows), 3), figs)
+                   bullets(esc(s) for _, _, s in bw.checks), para("Pole-zero analysis: " + esc(" ".join(pz))), figs)
 
 
 def conclusion(ranking, lab: dict) -> str:

@@ -54,7 +54,7 @@ def answered(page: str, anchors: tuple[str, ...], min_chars: int = 40) -> bool:
 
 def grading_template(page: str) -> str:
     """The grading template filled in for ``page`` (the report without this section): each content question with
-    the section(s) answering it and whether they are there; the §5 list likewise."""
+    the section(s) answering it and whether they are there, then the items of §5's list no question covers."""
     found = sections_of(page)
 
     def where(anchors: tuple[str, ...]) -> str:
@@ -63,11 +63,12 @@ def grading_template(page: str) -> str:
 
     rows = [("Author names and personal numbers", "–", "to be filled in by the authors")]
     rows += [(q, where(a), "yes" if answered(page, a) else "NO") for q, a in GRADING]
-    must = [(item, where(a), "yes" if answered(page, a) or a == ("grading-template",) else "NO")
-            for item, a in REQUIRED]
+    graded = {a for _, anchors in GRADING for a in anchors}
+    must = [("§5 also asks for: " + item, where(a), "yes" if answered(page, a) or a == ("grading-template",) else "NO")
+            for item, a in REQUIRED if not set(a) <= graded]
     body = "".join(f"<tr><td style='text-align:left'>{html.escape(q)}</td><td style='text-align:left'>{w}</td>"
                    f"<td>{s}</td></tr>" for q, w, s in rows + must)
     return (f"<section id='grading-template'><h2>{TITLE}</h2>\n<p>The lab's grading template and §5's "
             "list of what the report must include, with the section answering each (\"yes\": the section is there "
-            "and not empty).</p><table class='t'><tr><th>template item</th><th>answered in</th><th>there</th></tr>"
+            "and not empty).</p><table class='t' style='break-inside:auto'><tr><th>template item</th><th>answered in</th><th>there</th></tr>"
             + body + "</table></section>\n")
