@@ -149,14 +149,23 @@ def test_report_is_self_contained(lab_sweep):
 
 def test_report_cli_reuses_the_ranking_run_of_the_same_runs(lab_sweep, tmp_path, capsys):
     from maglev.study.cli import main
+    from maglev.study.report.pdf import chromium
 
-    store, _, _ = lab_sweep
+    store, reports, _ = lab_sweep
     out = tmp_path / "r.html"
-    assert main(["report", "--tracking-uri", f"sqlite:///{store}/mlflow.db", "--out", str(out)]) == 0
-    assert f"report:      {out}" in capsys.readouterr().out
+    printed = chromium() is not None  # with Chromium, --pdf prints it beside the page and logs it too
+    assert main(["report", "--tracking-uri", f"sqlite:///{store}/mlflow.db", "--out", str(out)]
+                + (["--pdf"] if printed else [])) == 0
+    said = capsys.readouterr().out
+    assert f"report:      {out}" in said and (f"pdf:         {out.with_suffix('.pdf')}" in said) == printed
     assert out.is_file() and "<section id='best-vs-worst'>" in out.read_text()
-    _, _, runs = all_runs(store)
-    assert len([r for r in runs if r.data.tags.get("kind") == "ranking"]) == 1
+    assert out.with_suffix(".pdf").is_file() == printed
+    client, _, runs = all_runs(store)
+    rankings = [r for r in runs if r.data.tags.get("kind") == "ranking"]
+    assert len(rankings) == 1
+    if printed:
+        logged = {a.path for a in client.list_artifacts(rankings[0].info.run_id, "report")}
+        assert f"report/{report_file(reports).stem}.pdf" in logged  # named as the logged page, not the --out file
 
 
 def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tmp_path):

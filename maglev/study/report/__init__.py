@@ -164,7 +164,7 @@ def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = No
         from maglev.study.report.pdf import print_pdf
 
         printed = print_pdf(path, path.with_suffix(".pdf"))
-        ranking.sweep.client.log_artifact(ranking_run, str(printed), "report")
+        log_files(ranking.sweep.client, ranking_run, {f"report/{Path(name).with_suffix('.pdf')}": printed})
     return path.resolve()
 
 
