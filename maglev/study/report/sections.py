@@ -20,7 +20,6 @@ from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, away_from_bla, order_choice
 from maglev.study.ranking import validation_note
-from maglev.validation import format_p
 
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
 
