@@ -276,7 +276,9 @@ def orders_of_table(table) -> Decision | None:
 
     if table is None or table.empty or not {"structure", "order", "dataset", "val_fit_sim"} <= set(table):
         return None
-    fit, aic = {}, {}
+    from maglev.study.cautions import _bla_by_order
+
+    fit, aic, bla = {}, {}, {}
     for st, runs in table.groupby("structure", sort=False):
         by = runs.pivot_table(index="dataset", columns="order", values="val_fit_sim", aggfunc="mean").dropna()
         if by.shape[1] < 2 or by.empty:
@@ -285,19 +287,16 @@ def orders_of_table(table) -> Decision | None:
         if "aic" in runs:
             a = runs[runs["dataset"].isin(by.index)].groupby("order")["aic"].mean()
             aic[str(st)] = {int(o): float(v) for o, v in a.items() if int(o) in fit[str(st)]}
-    return orders_decision(fit, aic, PHYSICS_ORDER) if fit else None
+        bla[str(st)] = _bla_by_order(runs)[0]
+    return orders_decision(fit, aic, PHYSICS_ORDER, bla=bla) if fit else None
 
 
-def log_orders(client, parent_id: str, table) -> dict | None:
-    """Add the orders decision of the ranked ``table`` to the parent run's ``lab/decisions.json`` (logged again,
-    whole); returns the file's content (None when there is no orders decision)."""
+def with_orders(content: dict | None, table) -> dict | None:
+    """A ``decisions.json`` content with the orders decision of the ranked ``table`` added (None when there is
+    no orders decision); the caller logs it on the parent run again, whole."""
     from maglev.lab.decision import write_decisions
-    from maglev.study.store import artifact_json
-    from maglev.study.tracking import log_files
 
     dec = orders_of_table(table)
     if dec is None:
         return None
-    content = {**(artifact_json(client, parent_id, "lab/decisions.json") or {}), **write_decisions([dec])}
-    log_files(client, parent_id, {"lab/decisions.json": content})
-    return content
+    return {**(content or {}), **write_decisions([dec])}

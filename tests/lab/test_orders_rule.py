@@ -40,3 +40,14 @@ def test_the_sentence_flips_to_a_caution_when_the_fit_still_rises_at_the_top():
 def test_no_fit_is_refused():
     with pytest.raises(ValueError, match="no orders"):
         final_order({})
+
+
+def test_an_order_moving_away_from_the_bla_does_not_count():
+    fit = {4: 19.2, 5: 20.6}
+    assert final_order(fit) == (5, False)
+    assert final_order(fit, bla={4: 0.43, 5: 1.16}) == (4, True)
+    d = orders_decision({"oe": fit}, bla={"oe": {4: 0.43, 5: 1.16}})
+    assert d.choice == {"oe": 4} and d.cautions == []
+    assert d.reasons[0].startswith("oe: order(s) [5] do not count") and "levelled off" in d.reasons[1]
+    closer = orders_decision({"oe": fit}, bla={"oe": {4: 0.43, 5: 0.40}})  # the numbers flip, so does the text
+    assert closer.choice == {"oe": 5} and closer.cautions and not closer.reasons

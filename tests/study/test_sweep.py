@@ -45,8 +45,12 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
     assert parent.info.run_name == "tiny" and parent.info.status == "FINISHED"
     assert parent.data.metrics["runs_finished"] == 4
     assert {"lab/working_region.png", "lab/rise_time.png", "lab/output_spectrum.png", "lab/alpha.png",
-            "lab/lab.json"} <= artifact_paths(client, parent.info.run_id)
+            "lab/lab.json", "lab/decisions.json"} <= artifact_paths(client, parent.info.run_id)
     assert 0 < parent.data.metrics["lab.alpha_star"] <= 1
+    from maglev.lab.decision import read_decisions  # the schema the report reads: every decision, with its rule
+    decisions = read_decisions(json.loads(open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")).read()))
+    assert {"working_region", "records", "data_length", "alpha", "delay"} <= set(decisions)
+    assert decisions["records"].forced and all(d.rule and d.reasons for d in decisions.values())
     names = set()
     for r in kids:
         assert r.info.status == "FINISHED"
@@ -63,8 +67,8 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
         # ARX one step ahead is at least y(t-1): far above it on the large binary input (96 % against 83 %), no
         # better on small white noise (50 % against 49 % on these 4 s records), as on the rig's white_noise_2 (ARX
         # 76.64 % against y(t-1)'s 76.6 % at 1 ms). Output error's prediction is its simulation: on the binary input
-        # it reaches about 15-30 %, as OE(2,2,2) does on the rig's binary_signal_1-3 (docs/simulator.md, "OE
-        # simulation FIT"), and must still beat the output's mean; on small white noise it fails, as on the rig's
+        # it reaches about 15-30 %, as OE(2,2,2) does on the rig's binary_signal_1-3
+        # (docs/decisions/0002-default-plant.md), and must still beat the output's mean; on small white noise it fails, as on the rig's
         # white_noise_2 (4.7 %): the default plant's output is mostly its wander there
         binary = t["dataset"] == "binary_a025"
         if t["structure"] == "arx":
