@@ -348,7 +348,7 @@ def binary_vs_uniform(ranking, lab: dict) -> str:
 def reference_response(cfg: dict, prep):
     """What a linear model of this record should be: the simulator's BLA for a simulated record's input class,
     the record's own spectral estimate (Welch; the BLA as the record shows it) for a real one."""
-    from maglev.sim.bla import frequency_response
+    from maglev.spectral import frequency_response
     from maglev.study.datasets import dataset_bla
 
     return dataset_bla(cfg["dataset"]) if cfg["dataset"]["source"] == "sim" else frequency_response(prep.data)
