@@ -66,7 +66,7 @@ def plot_resid(result: ResidResult, ax: Sequence[Axes] | None = None) -> Figure:
         axis.plot(lags, corr, "o-", color="tab:blue", markersize=3, label="estimate")
         axis.axhline(0.0, color="k", linewidth=0.5)
         axis.set_title(title, fontsize="medium")
-        axis.set_ylabel("correlation")
+        axis.set_ylabel("correlation (–)")
         axis.legend(loc="upper right", fontsize="small")
     _few_ticks(ax_auto, ax_cross)
     ax_auto.set_xlabel("lag τ (samples)")
@@ -179,8 +179,8 @@ def plot_pzmap(
     _few_ticks(ax_all, ax_zoom)
     for axis in (ax_all, ax_zoom):
         axis.set_aspect("equal", adjustable="box")
-        axis.set_xlabel("real")
-    ax_all.set_ylabel("imaginary")
+        axis.set_xlabel("Re z (–)")
+    ax_all.set_ylabel("Im z (–)")
     what = "" if not bounds else f", {_level_text(level, sd)} regions"
     off = f" ({beyond} beyond |z| = {reach:.3g})" if beyond else ""
     ax_all.set_title(f"Poles (x) and zeros (o) of G{what}{off}", fontsize="medium")
@@ -262,10 +262,10 @@ def plot_arxstruc(table, chosen: Sequence[tuple[int, int, str]] = (), ax: Axes |
                   label="best ARX per number of parameters")
     for i, (na, nb, label) in enumerate(chosen):
         row = table[(table["na"] == na) & (table["nb"] == nb)].iloc[0]
-        axis.semilogy([row["n_params"]], [row["loss"]], "s", markersize=9, markerfacecolor="none",
-                      color=f"C{i + 1}", label=f"{label}: na = {na}, nb = {nb}")
-    axis.set_xlabel("parameters (na + nb)")
-    axis.set_ylabel("validation loss (mean squared one-step error)")
+        axis.semilogy([row["n_params"]], [row["loss"]], "sD^"[i % 3], markersize=9 + 4 * i, markerfacecolor="none",
+                      color=f"C{i + 1}", label=f"{label}: na = {na}, nb = {nb}")  # growing: one never hides another
+    axis.set_xlabel("parameters na + nb (count)")
+    axis.set_ylabel(f"validation loss (mean squared one-step error, {Y_UNIT}²)")
     axis.legend(loc="upper right", fontsize="small")
     return axis.figure
 

@@ -27,6 +27,7 @@ LONGEST_FIRST = (
     "study/test_report.py",       # 69: the default sweep, its BLAs estimated, ranked and reported
     "study/test_sweep.py",        # 42: a sweep, maglev ui
     "study/test_server.py",       # 34: a tracking server, submitit's job processes
+    "study/test_report_real.py",  # 25 s of CPU: the real sweep, ranked, reported and printed (loaded machine)
     "sim/test_calibrate.py",      # 30
     "study/test_config.py",       # 25
     "estimation/test_nested_orders.py",  # 19

@@ -51,8 +51,8 @@ def plot_rise_time(r: RiseTime, ax: Axes | None = None) -> Figure:
     for level, t in ((0.1, r.t10), (0.9, r.t90)):
         ax.axhline(level, color="k", lw=0.6, ls=":")
         ax.axvline(t, color="tab:red", lw=0.8)
-    ax.set_xlabel("samples after the step")
-    ax.set_ylabel("normalised output")
+    ax.set_xlabel("time after the step (samples)")
+    ax.set_ylabel("normalised output (–)")
     ax.set_title(f"Rise time {r.samples:.1f} samples = {r.seconds * 1e3:.3g} ms; "
                  f"decimate by {r.decimation}")
     ax.legend(loc="lower right", fontsize="small")
@@ -65,7 +65,7 @@ def plot_output_spectrum(r: OutputSpectrum, ax: Axes | None = None) -> Figure:
     ax.semilogy(r.w / np.pi, r.magnitude, lw=0.6, color="tab:blue", label="|FFT(y - mean y)|")
     ax.axvspan(r.band[0] / np.pi, r.band[1] / np.pi, color="tab:orange", alpha=0.3,
                label=f"{r.fraction:.0%} of the energy")
-    ax.set_xlabel("ω / π  (1 = Nyquist)")
+    ax.set_xlabel("ω / π (rad/sample ÷ π; 1 = Nyquist of the record as identified, after decimation)")
     ax.set_ylabel(f"|Y| ({Y_UNIT})")
     ax.legend(loc="best", fontsize="small")
     return ax.figure
@@ -85,8 +85,8 @@ def plot_alpha(r: AlphaChoice, ax: Axes | None = None) -> Figure:
     ax.axvspan(r.band[0] / np.pi, r.band[1] / np.pi, color="tab:orange", alpha=0.3,
                label="output energy band")
     ax.set_yscale("log")
-    ax.set_xlabel("ω / π")
-    ax.set_ylabel("Φ_s(ω)")
+    ax.set_xlabel("ω / π (rad/sample ÷ π)")
+    ax.set_ylabel("Φ_s(ω) (–, unit-variance signal)")
     ax.set_title(f"α* = {r.alpha_star:g}")
     ax.legend(loc="best", fontsize="small")
     return ax.figure

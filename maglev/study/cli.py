@@ -1,7 +1,7 @@
 """The ``maglev`` command: every operation on the study and the simulator, one subcommand each.
 
     maglev rank       [--tracking-uri URI] [--experiment NAME] [--parent RUN_ID] [--structure S] [--force]
-    maglev report     [--tracking-uri URI] [--experiment NAME] [--parent RUN_ID] [--structure S] [--out FILE|DIR]
+    maglev report     [--tracking-uri URI] [--experiment NAME] [--parent RUN_ID] [--structure S] [--out FILE|DIR] [--pdf]
     maglev reproduce  RUN_ID [--tracking-uri URI] [--data-dir DIR] [--log]
     maglev reap       [--tracking-uri URI] [--experiment NAME] [--older-than-hours H]
     maglev ui         [--tracking-uri URI] [--port 5000]
@@ -62,8 +62,11 @@ def _rank(a: argparse.Namespace) -> int:
 
 def _report(a: argparse.Namespace) -> int:
     from maglev.study.report import rank_and_report
+    from maglev.study.report.pdf import PdfError, chromium
 
-    rank_and_report(_uri(a), a.experiment, a.parent, a.structure, a.out)
+    if a.pdf and chromium() is None:  # refused before anything is ranked or logged
+        raise PdfError("--pdf needs Chromium on PATH (chromium or chromium-browser; e.g. apt-get install chromium)")
+    rank_and_report(_uri(a), a.experiment, a.parent, a.structure, a.out, a.pdf)
     return 0
 
 
@@ -125,6 +128,7 @@ def parser() -> argparse.ArgumentParser:
     report = sub.add_parser("report", help="write a sweep's lab report (HTML) and log it")
     _store_args(report)
     report.add_argument("--out", default=None, help="output file or directory (default: reports/<sweep>-<id>.html)")
+    report.add_argument("--pdf", action="store_true", help="also print it to an A4 PDF beside it (needs Chromium)")
     report.set_defaults(func=_report)
     repro = sub.add_parser("reproduce", help="recompute a run from its logged config; exit 0 if identical")
     repro.add_argument("run_id")

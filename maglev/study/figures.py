@@ -59,9 +59,10 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
                       edgecolor="k", linewidth=0.5)
         ax.bar_label(bars, fmt="%.1f", fontsize="x-small")
     low = float(np.nanmin(comp["val_fit"]))
-    ax.set_ylim(max(0.0, low - 5.0), 100.5)
+    ax.set_ylim(min(0.0, low - 5.0), 100.5)  # from 0 (below it only when a FIT is negative): bar lengths compare
     ax.set_xticks(range(len(orders)), [f"{structure}{o}" for o in orders])
     ax.set_ylabel("one-step FIT on own validation data (%)")
+    ax.set_xlabel("structure and orders")
     ax.set_title(f"{structure}: binary (hatched) vs uniform input", fontsize="medium")
     ax.legend(loc="lower right", fontsize="small")
     if common is not None:
@@ -74,7 +75,9 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
         ax2.set_xticks(range(values.shape[1]), list(common.columns), rotation=20, ha="right")
         ax2.set_yticks(range(values.shape[0]), list(common.index), fontsize="small")
         ax2.set_title("FIT % of each model on each validation set", fontsize="medium")
-        fig.colorbar(image, ax=ax2, label="FIT %")
+        ax2.set_xlabel("validation data")
+        ax2.set_ylabel("model")
+        fig.colorbar(image, ax=ax2, label="one-step FIT (%)")
     return fig
 
 
@@ -113,20 +116,24 @@ def orders_figure(runs: pd.DataFrame) -> Figure:
             for j, (col, log) in enumerate((("loss", True), ("aic", False), ("val_fit", False))):
                 axes[i, j].plot(g["n_params"], g[col], "o-", label=str(ds))
                 axes[i, j].set_yscale("log" if log else "linear")
-        for j, label in enumerate(("loss (estimation MSE)", "AIC", "val FIT %")):
+        for j, (label, unit) in enumerate((("loss", "estimation MSE, cm²"), ("AIC", "–"),
+                                           ("validation FIT", "%"))):
             axes[i, j].set_title(f"{st}: {label}", fontsize="medium")
-            axes[i, j].set_xlabel("free parameters")
+            axes[i, j].set_ylabel(f"{label} ({unit})")
+            axes[i, j].set_xlabel("free parameters (count)")
         axes[i, 0].legend(fontsize="x-small")
     return fig
 
 
 def preparation_figure(lin, blas: dict) -> Figure:
-    """|G| of the small-signal Jacobian (``lin``: :class:`maglev.sim.plant.LinearModel`) and of the best linear
-    approximation of each input class (``blas``: dataset name → :class:`maglev.sim.bla.BLA`)."""
+    """|G| of a linearisation at the working point (``lin``: :class:`maglev.sim.plant.LinearModel`) and of the best
+    linear approximation of each input class (``blas``: dataset name → :class:`maglev.sim.bla.BLA`); the title
+    promises BLAs only when there are some."""
     curves = [ref.bounds(LEVEL, f"BLA, {name}") for name, ref in blas.items()]
     import control as ct
 
-    jac = ct.ss(lin.sys_d.A, lin.sys_d.B, lin.sys_d.C, lin.sys_d.D, lin.sys_d.dt, name="small-signal Jacobian")
+    jac = ct.ss(lin.sys_d.A, lin.sys_d.B, lin.sys_d.C, lin.sys_d.D, lin.sys_d.dt, name="linearisation at u*")
     fig = plot_bode(curves or [jac], true_system=jac if curves else None)
-    fig.axes[0].set_title("Linearisation at the working point and best linear approximations", fontsize="medium")
+    fig.axes[0].set_title("Linearisation at the working point" + (" and best linear approximations" if curves else
+                                                                  " (no simulated dataset: no BLA)"), fontsize="medium")
     return fig

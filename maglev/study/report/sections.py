@@ -19,14 +19,15 @@ from maglev.model import CANCEL_TOL, PolyModel
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, away_from_bla, order_choice
-from maglev.study.figures import orders_figure, png
 from maglev.study.ranking import validation_note
-from maglev.validation import format_p
 
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
 
 
 # ---------------------------------------------------------------------------- HTML helpers
+FIGURE = "{{figure}}"  # replaced by the figure's number when the page is assembled (number_figures)
+
+
 def esc(x) -> str:
     return html.escape(str(x))
 
@@ -40,12 +41,20 @@ def num(x, digits: int = 2) -> str:
     return f"{x:.{digits}f}" if 1e-3 <= abs(x) < 1e6 or x == 0 else f"{x:.3g}"
 
 
-def img(data: bytes | None, alt: str) -> str:
+def img(data: bytes | None, caption: str, cls: str = "") -> str:
+    """A numbered figure with its caption (plain text, escaped here); ``cls``: ``half`` (two per row), ``side``
+    (beside the text) or full width."""
     if not data:
-        return f"<p class='missing'>(figure {esc(alt)} not available)</p>"
+        return f"<p class='missing'>(figure not available: {esc(caption)})</p>"
     b64 = base64.b64encode(data).decode()
-    return (f"<figure><img alt='{esc(alt)}' src='data:image/png;base64,{b64}'>"
-            f"<figcaption>{esc(alt)}</figcaption></figure>")
+    return (f"<figure class='{cls}'><img alt='{esc(caption)}' src='data:image/png;base64,{b64}'>"
+            f"<figcaption><b>Figure {FIGURE}.</b> {esc(caption)}</figcaption></figure>")
+
+
+def number_figures(page: str) -> str:
+    """Number the figures of ``page`` in reading order."""
+    parts = page.split(FIGURE)
+    return "".join(p + (str(i + 1) if i < len(parts) - 1 else "") for i, p in enumerate(parts))
 
 
 def table(df: pd.DataFrame, digits: int = 2) -> str:
@@ -54,7 +63,7 @@ def table(df: pd.DataFrame, digits: int = 2) -> str:
 
 
 def section(anchor: str, title: str, *parts: str) -> str:
-    return f"<section id='{anchor}'><h2>{esc(title)}</h2>\n" + "\n".join(parts) + "</section>\n"
+    return f"<section id='{anchor}'><h2>{esc(title)}</h2>\n" + "\n".join(p for p in parts if p) + "</section>\n"
 
 
 def para(text: str) -> str:
@@ -65,52 +74,83 @@ def bullets(items: Iterable[str]) -> str:
     return "<ul>" + "".join(f"<li>{i}</li>" for i in items) + "</ul>"
 
 
+EVIDENCE_ROWS = 4  # a decision's evidence table stays in its section up to this many rows, else goes to Appendix E
+
+
+def decision(decisions: dict | None, name: str) -> str:
+    """A lab decision the sweep logged (``lab/decisions.json``, :class:`maglev.lab.decision.Decision`): its rule,
+    choice, reasons and cautions, with its evidence table when it is short (Appendix E holds the long ones);
+    "" when the sweep logged none of that name."""
+    d = (decisions or {}).get(name)
+    if d is None:
+        return ""
+    rows = d.rows()
+    text = "; ".join(f"{label}: {value}" for label, value in rows if label in ("rule", "choice"))
+    extra = [f"{label}: {value}" for label, value in rows if label not in ("rule", "choice")]
+    header, cells = d.table_rows()
+    short = 0 < len(cells) <= EVIDENCE_ROWS
+    return (para(f"<b>Decision {esc(name)}</b> — {text}"
+                 + ("" if short or not cells else f" (evidence: {len(cells)} rows, Appendix E)") + ".")
+            + (bullets(extra) if extra else "") + (evidence_table(header, cells) if short else ""))
+
+
+def evidence_table(header: list[str], cells: list[list[str]]) -> str:
+    """A decision's evidence rows (already escaped) as a table."""
+    return ("<table class='t'><tr>" + "".join(f"<th>{h}</th>" for h in header) + "</tr>"
+            + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in cells) + "</table>")
+
+
+def decisions_evidence(decisions: dict | None) -> str:
+    """Appendix E: the evidence of every decision too long to print in its section."""
+    parts = []
+    for name, d in (decisions or {}).items():
+        header, cells = d.table_rows()
+        if len(cells) > EVIDENCE_ROWS:
+            parts.append(f"<h3>{esc(name)}</h3>" + evidence_table(header, cells))
+    return section("decisions-evidence", "E. Evidence of the lab decisions", *parts) if parts else ""
+
+
 # ---------------------------------------------------------------------------- analysis helpers
 def cz(z: complex) -> str:
     return f"{z.real:.3f}{z.imag:+.3f}j" if abs(z.imag) > 1e-9 else f"{z.real:.3f}"
 
 
 # ---------------------------------------------------------------------------- sections
-def cautions(items: list) -> str:
-    """What the numbers below undermine (:mod:`maglev.study.cautions`), first, so nobody reads the ranking without it."""
-    if not items:
-        return section("cautions", "Cautions", para("No caution applies: the top model passes its residual tests, "
-                                                    "beats y(t−1) and simulates about as well as it predicts; no "
-                                                    "structure's best order is at the edge of the swept grid."))
-    return section("cautions", f"Cautions ({len(items)})",
-                   para("Each is computed from the runs' numbers; read the ranking with them in mind."),
-                   bullets(esc(c.text) for c in items))
-
-
-def working_region(lab: dict, lab_png: dict, ts_used: list[float]) -> str:
+def working_region(lab: dict, lab_png: dict, ts_used: list[float], decisions: dict | None = None) -> str:
+    """§3.1: the working region from the staircase's stationary averages, with its plot and motivation."""
+    title = "2. Working region"
     if "lab.u_min" not in lab:
-        return section("working-region", "1. Working region and sampling period",
+        return section("working-region", title,
                        para("The sweep's parent run has no lab-level steps (lab.enabled=false or they failed)."))
     g = lab.get
-    facts = [
-        f"Staircase of the input within the plant's [0, 10] A ({esc(lab.get('staircase', 'staircase'))}): the "
-        f"widest range of levels where the stationary averages ȳ vs ū stay on a straight line (every point "
-        f"within 5 % of the ȳ range from the least-squares line, every neighbour-to-neighbour slope within "
-        f"0.5–1.5 times its slope) is <b>ū ∈ [{num(g('lab.u_min'))}, {num(g('lab.u_max'))}] A</b>: "
-        "the working region.",
-        f"Least-squares slope in the region: {num(g('lab.slope'), 4)} {Y_UNIT}/{U_UNIT}; "
-        f"working point u* = (u_min + u_max)/2 = <b>{num(g('lab.u_star'))} A</b>.",
-        f"10–90 % rise time of steps inside the region: {num(g('lab.rise_time_samples'), 1)} samples = "
-        f"{num(1000 * g('lab.rise_time_s'), 1)} ms, so 4–10 samples per rise time means "
-        f"Ts ∈ [{num(1000 * g('lab.Ts_min'), 2)}, {num(1000 * g('lab.Ts_max'), 2)}] ms; decimation by "
-        f"{int(g('lab.decimation'))} (suggested).",
-        "Sampling period used by the models: " + ", ".join(f"{num(1000 * t, 2)} ms" for t in ts_used) + ".",
-    ]
-    return section("working-region", "1. Working region and sampling period", bullets(facts),
-                   "<div class='row'>" + img(lab_png.get("working_region.png"), "working region: ȳ vs ū")
-                   + img(lab_png.get("rise_time.png"), "averaged step response and rise time") + "</div>")
+    text = (f"A staircase of {esc(lab.get('staircase', 'staircase'))} steps the input over the plant's [0, 10] A; "
+            f"getStationaryAverages (Appendix A) averages the last part of each step's response, after its "
+            f"transient. The working region is the widest range of levels on which ȳ against ū stays on a "
+            f"straight line (every point within 5 % of the ȳ range from the least-squares line, every "
+            f"neighbour-to-neighbour slope within 0.5–1.5 times its slope): <b>ū ∈ [{num(g('lab.u_min'))}, "
+            f"{num(g('lab.u_max'))}] A</b>, slope {num(g('lab.slope'), 3)} {Y_UNIT}/{U_UNIT}, working point "
+            f"<b>u* = (u_min + u_max)/2 = {num(g('lab.u_star'))} A</b>. Below it the lower magnet still rests on its "
+            "seat, above it the current regulator saturates, so the slope changes there, as the figure beside shows.")
+    sampling = (f"Sampling: the 10–90 % rise time of steps inside the region is {num(g('lab.rise_time_samples'), 1)} "
+                f"samples = {num(1000 * g('lab.rise_time_s'), 1)} ms, so 4–10 samples per rise time allow "
+                f"Ts ∈ [{num(1000 * g('lab.Ts_min'), 2)}, {num(1000 * g('lab.Ts_max'), 2)}] ms; the models use "
+                + ", ".join(f"{num(1000 * t, 2)} ms" for t in ts_used)
+                + f" (decimation by {int(g('lab.decimation'))} of the 1 ms records).")
+    fig = img(lab_png.get("working_region.png"), "Working region: stationary output ȳ (cm) against step level ū "
+              "(A) of the staircase; filled squares are the levels inside the region, the line its least-squares "
+              "fit, the dotted line the working point u*.", "side")
+    return section("working-region", title, fig, para(text), para(sampling),
+                   decision(decisions, "working_region"), "<div class='clear'></div>")
 
 
-def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict) -> str:
-    """``datasets``: name -> Prepared; ``configs``: name -> run config."""
+def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decisions: dict | None = None) -> str:
+    """§3.3: why these three records: two uniform, one binary, each inside the working region, centred at u*,
+    as wide as it allows, and the binary one's α = α* from the output spectrum.  ``datasets``: name -> Prepared;
+    ``configs``: name -> run config."""
     u_lo, u_hi = lab.get("lab.u_min", math.nan), lab.get("lab.u_max", math.nan)
+    u_star = lab.get("lab.u_star", math.nan)
     alpha_star = lab.get("lab.alpha_star", math.nan)
-    rows, why = [], []
+    why = []
     for name, prep in datasets.items():
         ds = configs[name]["dataset"]
         trim = int(ds["preprocess"]["trim"])
@@ -119,58 +159,54 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict) -> st
         inside = lo >= u_lo - 1e-9 and hi <= u_hi + 1e-9
         cover = (hi - lo) / (u_hi - u_lo) if u_hi > u_lo else math.nan
         alpha = ds.get("alpha") if ds["input_class"] == "binary" else None
-        rows.append({"dataset": name, "class": ds["input_class"], "source": ds["source"], "u min (A)": lo,
-                     "u max (A)": hi, "mean u (A)": prep.u0, "std u (A)": float(np.std(u)),
-                     "inside working region": "yes" if inside else "NO", "share of region width": cover,
-                     "α": alpha})
-        text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): range [{num(lo)}, {num(hi)}] A, "
-                f"{num(100 * cover, 0)} % of the working region's width, mean {num(prep.u0)} A vs u* = "
-                f"{num(lab.get('lab.u_star'))} A; " + ("stays inside the working region" if inside else
-                                                    "<b>leaves the working region</b>"))
+        text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): [{num(lo)}, {num(hi)}] A, "
+                f"{num(100 * cover, 0)} % of the working region's width, mean {num(prep.u0)} A "
+                f"({num(prep.u0 - u_star, 2)} A from u*); " + ("inside the working region" if inside else
+                                                                 "<b>leaves the working region</b>"))
         if alpha is not None:
-            text += (f"; switching probability α = {num(alpha)}" +
-                     (" = α*, the value matching the output's energy band" if math.isclose(alpha, alpha_star)
-                      else f" (α* = {num(alpha_star)})"))
+            text += (f"; α = {num(alpha)}" + (" = α*, the α whose spectrum puts most power in the output's band"
+                                              if math.isclose(alpha, alpha_star) else f" (α* = {num(alpha_star)})"))
         why.append(text + ".")
+    classes = [configs[n]["dataset"]["input_class"] for n in datasets]
+    head = (f"The lab asks for two uniform white-noise inputs and one random binary input (§3.3): this sweep uses "
+            f"{classes.count('uniform')} uniform and {classes.count('binary')} binary record(s). A record is "
+            "chosen for staying inside the working region (a linear model is valid there), being centred at u* and "
+            "covering as much of the region as it can (the most excitation the linear range allows):")
     shares = lab.get("alpha_shares", {})
-    spectrum = []
+    spectrum = ""
     if "lab.band_low" in lab:
-        spectrum.append(
-            f"The output spectrum |FFT(y − ȳ)| of {esc(lab.get('spectrum_dataset', 'the base dataset'))} holds 80 % "
-            f"of its energy in ω ∈ [{num(lab['lab.band_low'], 3)}, {num(lab['lab.band_high'], 3)}] rad/sample "
-            f"([{num(lab['lab.band_low'] / math.pi, 3)}, {num(lab['lab.band_high'] / math.pi, 3)}]·π). Share of the "
-            "binary signal's power in that band for each α: "
+        spectrum = para(
+            f"α*: the output spectrum |FFT(y − ȳ)| of {esc(lab.get('spectrum_dataset', 'the base dataset'))} holds "
+            f"80 % of its energy below ω = {num(lab['lab.band_high'], 3)} rad/sample (from {num(lab['lab.band_low'], 3)}"
+            f"; {num(lab['lab.band_high'] / math.pi, 3)}·π, π = the Nyquist frequency of the record as identified). "
+            "Share of a binary signal's power in that band: "
             + ", ".join(f"α = {a}: {num(100 * s, 1)} %" for a, s in shares.items())
-            + f"; the largest share gives <b>α* = {num(alpha_star)}</b>.")
-    return section("inputs", "2. Input signals", bullets(why), table(pd.DataFrame(rows)),
-                   bullets(spectrum) if spectrum else "",
-                   "<div class='row'>" + img(lab_png.get("output_spectrum.png"), "output spectrum and energy band")
-                   + img(lab_png.get("alpha.png"), "binary-signal spectra for the lab's α values") + "</div>")
+            + f"; the largest gives <b>α* = {num(alpha_star)}</b>.")
+    figs = ("<div class='row'>" + img(lab_png.get("output_spectrum.png"), "Output spectrum |Y(ω)| (cm) of the base "
+                                      "dataset against ω/π; the shaded band holds 80 % of its energy.", "half")
+            + img(lab_png.get("alpha.png"), "Spectrum Φ_s(ω) of a unit binary signal for the lab's α values "
+                  "(the lab's Fig. 5), with the output's band shaded.", "half") + "</div>")
+    return section("inputs", "3. Input signals", para(head), bullets(why), spectrum,
+                   decision(decisions, "records"), decision(decisions, "alpha"), figs)
 
 
-def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict) -> str:
+def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict, decisions: dict | None = None) -> str:
+    """§3.4: samples and seconds used for estimation and validation, per record, against the lab's minimum."""
     rows = []
     for name, prep in datasets.items():
         pp = configs[name]["dataset"]["preprocess"]
         est_s, val_s = prep.est.N * prep.est.Ts, prep.val.N * prep.val.Ts
         ok = est_s >= MIN_EST_S and val_s >= MIN_VAL_S
-        rows.append({"dataset": name, "record (samples)": prep.raw.N, "raw Ts (ms)": 1000 * prep.raw.Ts,
-                     "trimmed": int(pp["trim"]), "decimation": int(pp["decimate"]), "Ts (ms)": 1000 * prep.data.Ts,
-                     "estimation": f"{prep.est.N} samples = {num(est_s)} s",
-                     "validation": f"{prep.val.N} samples = {num(val_s)} s ({esc(prep.val_name)})",
-                     "lab minimum (10 s / 7 s)": "met" if ok else "NOT met"})
-    per_model = table_[["rank", "name", "n_est", "n_val", "val_dataset"]].copy()
-    per_model["n_est"] = per_model["n_est"].astype("Int64")
-    per_model["n_val"] = per_model["n_val"].astype("Int64")
-    text = para("Each record: the start-up transient is trimmed, means removed, decimated to Ts, then split "
-                "— the first part estimates, the rest (never seen by the estimator) validates. Every model "
-                "is validated on the validation part of its own dataset (column val_dataset). Units: u is the "
-                f"coil current command in {U_UNIT}, y the upper magnet's height in {Y_UNIT} (the rig's laser sensor "
-                f"after its two-point calibration); gains are in {Y_UNIT}/{U_UNIT}.")
-    return section("data", "3. Data for estimation and validation", text, table(pd.DataFrame(rows)),
-                   "<details><summary>Per model</summary>" + table(per_model) + "</details>")
-
-
+        rows.append({"dataset": name, "record (samples)": prep.raw.N, "trimmed": int(pp["trim"]),
+                     "Ts (ms)": 1000 * prep.data.Ts, "estimation": f"{prep.est.N} samples = {num(est_s)} s",
+                     "validation": f"{prep.val.N} samples = {num(val_s)} s",
+                     "≥ 10 s / 7 s": "met" if ok else "NOT met"})
+    text = para("Each record: the start-up transient is trimmed, the means removed, the record decimated to Ts and "
+                "split — the first part estimates, the rest (never seen by the estimator) validates; every model is "
+                "validated on its own record's validation part, and the binary-vs-uniform comparison (§7) also on "
+                f"the others'. Units: u is the coil current command in {U_UNIT}, y the upper magnet's height in "
+                f"{Y_UNIT}.")
+    return section("data", "4. Amount of data", text, table(pd.DataFrame(rows)), decision(decisions, "data_length"))
 def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) -> str:
     """Whether the identified models support their delay: how many have a first B coefficient b_nk more than
     two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given."""
@@ -201,177 +237,207 @@ def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) 
     return text
 
 
-def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol: float = CANCEL_TOL) -> str:
-    """``models``: run id -> PolyModel for every ranked run; ``lab``: the sweep's lab steps (order selection)."""
-    parts = []
+def order_summary(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> pd.DataFrame:
+    """One row per structure: its mean simulation FIT (%) over the datasets at each swept order (the number an order
+    is chosen by, one column per order: a grid of any size stays a few rows) and its near cancellations in all."""
+    rows = []
+    for st, g in table_.groupby("structure", sort=False):
+        row = {"structure": st}
+        for order, h in sorted(g.groupby("order"), key=lambda x: x[0]):
+            row[f"order {int(order)}: sim FIT %"] = h["val_fit_sim"].mean()
+        row["cancellations"] = sum(len(models[i].near_cancellations(tol)) for i in g["run_id"])
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | None = None,
+               tol: float = CANCEL_TOL) -> str:
+    """§3.5: the structures (at least three) and the motivation of each structure's order, from the sweep's
+    numbers (``models``: run id -> PolyModel for every ranked run)."""
+    names = list(dict.fromkeys(table_["structure"]))
+    parts = [para(f"{len(names)} structures were estimated ({', '.join(n.upper() for n in names)}; the lab asks for "
+                  "three): from the simplest, ARX, whose noise shares the plant's poles, through ARMAX, to OE and BJ, "
+                  "whose G has poles of its own — the structure the physics suggests (§1).")]
     if "lab.arx_na" in lab:
         parts.append(para(
-            f"Before fitting: on {esc(lab.get('spectrum_dataset', 'the base dataset'))}, delayest (ARX [2 2 nk]) "
-            f"gives the delay nk = {int(lab['lab.nk'])} samples, and ARX order selection (arxstruc over na, nb "
-            f"in 1…{int(lab['lab.max_order'])}, selstruc) picks "
-            f"na = {int(lab['lab.arx_na'])}, nb = {int(lab['lab.arx_nb'])} by AIC and na = "
-            f"{int(lab['lab.arx_na_mdl'])}, nb = {int(lab['lab.arx_nb_mdl'])} by MDL.")
-            + img(lab_png.get("orders.png"), "ARX order selection (selstruc)"))
+            f"Before any PEM fit: delayest (ARX [2 2 nk]) gives nk = {int(lab['lab.nk'])} samples, and ARX order "
+            f"selection (arxstruc, na and nb in 1…{int(lab['lab.max_order'])}) picks na = {int(lab['lab.arx_na'])}, "
+            f"nb = {int(lab['lab.arx_nb'])} by AIC and na = {int(lab['lab.arx_na_mdl'])}, nb = "
+            f"{int(lab['lab.arx_nb_mdl'])} by MDL (Figure in Appendix D)."))
     delay = delay_evidence([models[i] for i in table_["run_id"]], int(lab["lab.nk"]) if "lab.nk" in lab else None)
     if delay:
         parts.append(para(delay))
-    for st in dict.fromkeys(table_["structure"]):
+    lines = []
+    for st in names:
         runs = table_[table_["structure"] == st]
-        rows, flagged = [], []
-        for _, r in runs.sort_values(["dataset", "n_params"]).iterrows():
-            cancel = models[r["run_id"]].near_cancellations(tol)
-            rows.append({"dataset": r["dataset"], "orders": r["orders"], "n_params": r["n_params"],
-                         "loss": r.get("loss"), "FPE": r.get("fpe"), "AIC": r.get("aic"), "val FIT %": r["val_fit"],
-                         "near cancellations": len(cancel)})
-            flagged += [f"{esc(r['name'])}: {w} pole {cz(p)} vs zero {cz(z)} (|p−z| = {num(d, 3)})"
-                        for w, p, z, d in cancel]
-        by_order = runs.groupby("orders").agg(aic=("aic", "mean"), fit=("val_fit", "mean"),
-                                              n=("n_params", "first"))
-        best_aic, best_fit = by_order["aic"].idxmin(), by_order["fit"].idxmax()
-        n_cancel = {o: sum(len(models[i].near_cancellations(tol)) for i in runs.loc[runs["orders"] == o, "run_id"])
-                    for o in by_order.index}
-        choice = (f"Orders tried: {', '.join(esc(o) for o in by_order.index)}. Mean AIC over the datasets is "
-                  f"lowest for <b>{esc(best_aic)}</b> ({num(by_order.loc[best_aic, 'aic'])}) and mean validation "
-                  f"FIT highest for <b>{esc(best_fit)}</b> ({num(by_order.loc[best_fit, 'fit'])} %); near pole-zero "
-                  "cancellations per order: " + ", ".join(f"{esc(o)}: {n}" for o, n in n_cancel.items()) + ". ")
-        if best_aic == best_fit:
-            choice += "Both criteria pick the same orders."
-        else:
-            choice += (f"The criteria disagree: {esc(best_fit)} validates "
-                       f"{num(by_order.loc[best_fit, 'fit'] - by_order.loc[best_aic, 'fit'])} FIT points "
-                       f"{'better' if by_order.loc[best_fit, 'fit'] >= by_order.loc[best_aic, 'fit'] else 'worse'} "
-                       f"than {esc(best_aic)}, which has the lower AIC.")
-        oc = order_choice(runs)
-        if oc is not None:
-            listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
-            if oc["edge"]:
-                where = f", at the {oc['edge']} edge of the swept orders: add order {oc['suggest']}."
-            elif oc["chosen"] == oc["grid"][0]:
-                where = (f", the smallest swept: the higher orders add at most {ORDER_MARGIN:g} point (no smaller "
-                         "order was swept).")
-            else:
-                where = ", inside the swept orders."
-            choice += (f" Mean simulation FIT by order ({listed}): the smallest order within {ORDER_MARGIN:g} point "
-                       f"of the best is <b>{oc['chosen']}</b>{where}")
-            undermined = away_from_bla(oc)
-            if undermined:
-                choice += " " + esc(undermined)
-        if flagged:
-            choice += " Near cancellations mean the order is higher than the data support."
         entry = get_structure(st)
-        parts.append(f"<h3>{esc(st.upper())}</h3>" + para(f"{esc(st.upper())} {esc(entry.equation)}: "
-                                                          f"{esc(entry.description)}") + para(choice)
-                     + table(pd.DataFrame(rows), 4)
-                     + (f"<details><summary>{len(flagged)} near cancellation(s), |p−z| &lt; {tol}</summary>"
-                        + bullets(flagged) + "</details>" if flagged else ""))
-    intro = para(f"Each structure was fitted at every order of the sweep; the order is motivated by the "
-                 f"estimation loss, FPE and AIC against the number of parameters, the validation FIT, and "
-                 f"pole-zero pairs closer than {tol} in the z-plane (a cancellation: a superfluous order).")
-    return section("structures", "4. Model structures and orders", intro, *parts,
-                   img(png(orders_figure(table_)), "loss, AIC and validation FIT against the number of parameters"))
+        text = f"<b>{esc(st.upper())}</b> {esc(entry.equation)}. "
+        oc = order_choice(runs)
+        chosen = (decisions or {}).get("orders")
+        if chosen is not None and isinstance(chosen.choice, dict) and st in chosen.choice:
+            text += f"Order <b>{esc(chosen.choice[st])}</b>, by the orders decision below."
+        elif oc is None:
+            text += f"One order swept ({esc(', '.join(sorted(set(runs['orders']))))}): no choice to motivate."
+        else:
+            listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
+            text += (f"Mean simulation FIT by order ({listed}; the simulation FIT measures G alone, the part an order "
+                     f"is for): the smallest order within {ORDER_MARGIN:g} point of the best is <b>{oc['chosen']}</b>")
+            if oc["edge"]:
+                text += f", at the {oc['edge']} edge of the swept orders: order {oc['suggest']} would be the next to try."
+            elif oc["chosen"] == oc["grid"][0]:
+                text += f"; higher orders add at most {ORDER_MARGIN:g} point."
+            else:
+                text += ", inside the swept orders."
+        undermined = away_from_bla(oc) if oc is not None else ""
+        if undermined:
+            text += " " + esc(undermined)
+        n_cancel = sum(len(models[i].near_cancellations(tol)) for i in runs["run_id"])
+        if n_cancel:
+            text += f" {n_cancel} near pole-zero cancellation(s) (|p−z| &lt; {tol}) among its models: orders the data do not support."
+        lines.append(text)
+    parts += [bullets(lines), table(order_summary(table_, models, tol)), decision(decisions, "orders"),
+              decision(decisions, "delay")]
+    return section("structures", "5. Model structures and orders", *parts)
 
 
 def top_four(ranking) -> str:
-    cols = ["rank", "name", "structure", "orders", "dataset", "val_fit", "val_fit_naive", "val_fit_sim", "n_params",
-            "val_dataset"]
+    """§3.7: the top four by one-step validation FIT, with y(t−1)'s FIT and the simulation FIT beside."""
+    cols = ["rank", "name", "val_fit", "val_fit_naive", "val_fit_sim", "n_params", "val_dataset"]
     note = validation_note(ranking.top)
-    text = para(f"{len(ranking.table)} FINISHED models ranked by one-step-ahead FIT on validation data "
-                "(ties to fewer parameters)"
+    text = para(f"{len(ranking.table)} models ranked by one-step-ahead FIT on validation data (the lab's eq. 5; ties "
+                "to fewer parameters)"
                 + (", ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(ranking.sweep.ignored.items()))
-                   if ranking.sweep.ignored else "") + ". Beside each: the naive predictor ŷ(t) = y(t−1) on the "
-                "same data (val_fit_naive; a model must beat it to add anything) and the simulation FIT "
-                "(val_fit_sim; how well G alone reproduces the output).")
+                   if ranking.sweep.ignored else "") + ". Beside each: y(t−1)'s FIT on the same data (val_fit_naive: "
+                "a model must beat it to add anything) and the simulation FIT (val_fit_sim: G alone).")
     lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])} "
              f"(y(t−1): {num(r['val_fit_naive'])} %, simulation: {num(r['val_fit_sim'])} %), "
              f"{r['n_params']} parameters" for _, r in ranking.top.iterrows()]
-    return section("top4", "5. Top four models", text, bullets(lines),
-                   para(f"<b>Note:</b> the top four were {esc(note)}.") if note else "",
-                   table(ranking.top[cols]),
-                   "<details><summary>All ranked models</summary>" + table(ranking.table[cols]) + "</details>")
+    return section("top4", "6. Top four models", text, bullets(lines),
+                   para(f"<b>Note:</b> the top four were {esc(note)}.") if note else "")
 
 
-def binary_vs_uniform(ranking) -> str:
+def binary_vs_uniform(ranking, lab: dict) -> str:
+    """§3.4/§3.7: one structure's binary- and uniform-input models on common validation data, discussed."""
+    from maglev.study.report.verdicts import class_comparison
+
+    title = "7. Binary vs uniform input"
     if ranking.comparison is None:
-        return section("binary-vs-uniform", "6. Binary vs uniform input", para(esc("; ".join(ranking.notes))))
+        return section("binary-vs-uniform", title, para(esc("; ".join(ranking.notes))))
     comp, st = ranking.comparison, ranking.structure
-    best = comp.loc[comp.groupby("input_class")["val_fit"].idxmax()].set_index("input_class")
-    lines = [f"Structure <b>{esc(st)}</b> (the best-fitting structure with both input classes, or --structure). "
-             f"Best binary-input model {esc(best.loc['binary', 'name'])}: FIT {num(best.loc['binary', 'val_fit'])} % "
-             f"on {esc(best.loc['binary', 'val_dataset'])}; best uniform-input model "
-             f"{esc(best.loc['uniform', 'name'])}: {num(best.loc['uniform', 'val_fit'])} % on "
-             f"{esc(best.loc['uniform', 'val_dataset'])}."]
-    note = validation_note(comp)
-    if note:
-        lines.append(f"These FITs were {esc(note)} — so the same models are also evaluated on every validation set:")
-    parts = [bullets(lines), table(comp[["rank", "name", "input_class", "orders", "val_fit", "val_fit_sim",
-                                         "n_params", "val_dataset"]])]
-    if ranking.common is not None:
-        common = ranking.common
-        cls = dict(zip(comp["name"], comp["input_class"]))
-        wins = []
-        for col in common.columns:
-            c = common[col].dropna()
-            if c.empty:
-                continue
-            winner = c.idxmax()
-            wins.append(f"on {esc(col)} the best is {esc(winner)} ({esc(cls[winner])}, {num(c.max())} %); best "
-                        f"binary {num(c[[n for n in c.index if cls[n] == 'binary']].max())} % vs best uniform "
-                        f"{num(c[[n for n in c.index if cls[n] == 'uniform']].max())} %")
-        parts += [table(common.reset_index(names="model")), bullets(wins)]
-    elif ranking.notes:
-        parts.append(para(esc("; ".join(ranking.notes))))
-    parts.append(img(ranking.files.get("binary_vs_uniform/fit.png"), f"{st}: FIT by input class"))
-    return section("binary-vs-uniform", f"6. Binary vs uniform input ({st})", *parts)
+    parts = [para(f"Structure <b>{esc(st.upper())}</b> (the best-fitting structure with models of both input "
+                  "classes). Each record is represented by its model of the highest FIT on its own validation data, "
+                  "and every model is evaluated on every record's validation data (rows: estimated on, columns: "
+                  "validated on; one-step FIT %):")]
+    if ranking.common is None:
+        parts.append(para(esc("; ".join(ranking.notes) or "no common validation data")))
+        return section("binary-vs-uniform", title, *parts)
+    u_star = lab.get("lab.u_star")
+    width = lab.get("lab.u_max", math.nan) - lab.get("lab.u_min", math.nan)
+    cc = class_comparison(comp, ranking.common, u_star, width if math.isfinite(width) else None)
+    matrix = cc.matrix.copy()
+    matrix.index = [f"{d} ({cc.classes[d]}): {cc.models[d]}" for d in matrix.index]
+    parts.append(table(matrix.reset_index(names="estimated on → validated on")))
+    parts.append(para(f"<b>Which one is higher?</b> {esc(cc.sentences[0])}"))
+    parts.append(bullets(esc(x) for x in cc.sentences[1:]))
+    parts.append(img(ranking.files.get("binary_vs_uniform/fit.png"),
+                     f"{st.upper()}: one-step FIT (%) of each model on its own validation data (left; binary hatched, "
+                     "axis from 0) and of every compared model on every validation set (right).", "full"))
+    return section("binary-vs-uniform", title, *parts)
 
 
-def test_comparison(test: str, best_passes: bool, worst_passes: bool, p_best: float, p_worst: float,
-                    failing_means: str) -> str:
-    """One sentence comparing the best and worst model on one residual test, from the two outcomes."""
-    ps = f"p = {format_p(p_best)} for the best, {format_p(p_worst)} for the worst"
-    if best_passes and worst_passes:
-        return f"Both pass the {test} test ({ps})."
-    if not best_passes and not worst_passes:
-        return f"Both fail the {test} test ({ps}): {failing_means}, in both."
-    if best_passes:
-        return f"Only the best passes the {test} test ({ps}); the worst has {failing_means}."
-    return (f"The worst passes the {test} test and the best fails it ({ps}): the best has {failing_means}, so "
-            "its higher one-step FIT does not make it the better model on this test.")
+def reference_response(cfg: dict, prep):
+    """What a linear model of this record should be: the simulator's BLA for a simulated record's input class,
+    the record's own spectral estimate (Welch; the BLA as the record shows it) for a real one."""
+    from maglev.spectral import frequency_response
+    from maglev.study.datasets import dataset_bla
+
+    return dataset_bla(cfg["dataset"]) if cfg["dataset"]["source"] == "sim" else frequency_response(prep.data)
 
 
-def best_vs_worst(ranking, models_all: dict, tol: float = CANCEL_TOL) -> str:
+def peak_frequency(ref) -> float | None:
+    """The BLA's resonance frequency (rad/s) where |G| rises significantly above its low-frequency value."""
+    if ref is None or not resonance_rise(ref):
+        return None
+    keep = ref.w > 0
+    return float(ref.w[keep][int(np.argmax(np.abs(ref.G[keep])))])
+
+
+def best_vs_worst(ranking, models_all: dict, lab: dict, physics_modes: list | None = None,
+                  references: dict | None = None) -> str:
+    """§3.7: the best and worst model compared with Bode diagrams, pole-zero maps and residual tests, and which
+    differences explain the ranking (:func:`maglev.study.report.verdicts.best_vs_worst`).  ``references``:
+    validation dataset -> its BLA (or the record's spectral estimate)."""
+    from maglev.study.report import verdicts as v
+
     b, w = ranking.best, ranking.worst
-    rb, rw = ranking.resids[b["run_id"]], ranking.resids[w["run_id"]]
-    keys = [("val_fit", "validation FIT % (one step)"), ("val_fit_sim", "validation FIT % (simulation)"),
-            ("n_params", "parameters"), ("whiteness_pvalue", "whiteness p-value"),
-            ("independence_pvalue", "independence p-value"), ("resid_auto_outside", "autocorr. lags outside 99 %"),
-            ("resid_cross_outside", "cross-corr. lags outside 99 %"), ("max_pole_radius", "largest |pole|"),
-            ("dcgain", "static gain"), ("g_h2_rel_err", "‖G − G_lin‖ / ‖G_lin‖ (small-signal Jacobian)")]
-    rows = [{"quantity": label, "best": num(b.get(k), 3), "worst": num(w.get(k), 3)} for k, label in keys
-            if k in b.index]
-    cb, cw = models_all[b["run_id"]].near_cancellations(tol), models_all[w["run_id"]].near_cancellations(tol)
-    rows.append({"quantity": f"near cancellations (|p−z| < {tol})", "best": len(cb), "worst": len(cw)})
-    findings = [f"Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on {esc(b['val_dataset'])}); "
-                f"worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT {num(w['val_fit'])} % on "
-                f"{esc(w['val_dataset'])})."]
-    for who, r, res in (("best", b, rb), ("worst", w, rw)):
-        findings.append(
-            f"Residuals of the {who}: {'white' if res.white else 'not white'} (p = {format_p(res.whiteness_pvalue)}, "
-            f"{num(100 * res.auto_outside, 0)} % of autocorrelation lags outside the band), "
-            f"{'independent of' if res.independent else 'correlated with'} the input "
-            f"(p = {format_p(res.independence_pvalue)}, {num(100 * res.cross_outside, 0)} % of lags outside).")
-    findings += [test_comparison("whiteness", rb.white, rw.white, rb.whiteness_pvalue, rw.whiteness_pvalue,
-                                 "residuals correlated in time: the noise model misses structure in the output"),
-                 test_comparison("independence", rb.independent, rw.independent, rb.independence_pvalue,
-                                 rw.independence_pvalue, "residuals correlated with the input: G misses dynamics "
-                                 "or the delay")]
-    findings.append(f"Largest pole radius: best {num(b.get('max_pole_radius'), 3)}, worst "
-                    f"{num(w.get('max_pole_radius'), 3)}; static gain best {num(b.get('dcgain'), 3)}, worst "
-                    f"{num(w.get('dcgain'), 3)}.")
-    return section("best-vs-worst", "7. Best vs worst model", bullets(findings), table(pd.DataFrame(rows), 3),
-                   "<div class='row'>" + img(ranking.files.get("best_vs_worst/bode.png"), "Bode diagrams of G")
-                   + img(ranking.files.get("best_vs_worst/pzmap.png"), "pole-zero maps of G") + "</div>",
-                   img(ranking.files.get("best_vs_worst/resid.png"),
-                       "residual correlations, best (left) and worst (right)"))
+    explained = v.explained_by_dataset(ranking.table)
+    fb = v.model_facts(b, ranking.resids[b["run_id"]], models_all[b["run_id"]], explained.get(b["val_dataset"],
+                                                                                              math.nan))
+    fw = v.model_facts(w, ranking.resids[w["run_id"]], models_all[w["run_id"]], explained.get(w["val_dataset"],
+                                                                                              math.nan))
+    slope = lab.get("lab.slope")
+    bw = v.best_vs_worst(fb, fw, slope)
+    refs = references or {}
+    head = (f"Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on {esc(b['val_dataset'])}); "
+            f"worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT {num(w['val_fit'])} % on "
+            f"{esc(w['val_dataset'])}).")
+    tally = bw.tally
+    better = fb if bw.better == "best" else fw
+    verdict = (f"<b>Why one is better:</b> of the checks below, {tally['best']} favour the best and {tally['worst']} "
+               f"the worst by one-step FIT, so <b>{esc(better.name)}</b> is the better model of the plant"
+               + (" — the one-step ranking's order stands." if bw.better == "best" else
+                  " — the reverse of the one-step ranking: the best's one-step FIT comes from its noise model's use "
+                  "of past outputs, not from G."))
+    pz = [v.pole_zero_text(f, physics_modes, peak_frequency(refs.get(f.val_dataset))) for f in (fb, fw)]
+    figs = ("<div class='row'>" + img(ranking.files.get("best_vs_worst/bode.png"),
+                                      "Bode diagrams of G of the best and worst model; shaded bands: 99 % confidence "
+                                      "regions from the estimated parameter covariance.", "half")
+            + img(ranking.files.get("best_vs_worst/pzmap.png"), "Poles (x) and zeros (o) of G of the best and worst "
+                  "model, with the unit circle; shaded regions: 99 % confidence regions of each root.", "half")
+            + "</div>"
+            + img(ranking.files.get("best_vs_worst/resid.png"), "Residual analysis (resid) of the best (left) and worst "
+                  "(right): autocorrelation of the residuals (top) and their cross-correlation with the input "
+                  "(bottom); shaded bands: the 99 % confidence band of white, input-independent residuals.", "wide"))
+    return section("best-vs-worst", "8. Best vs worst model", para(head), para(verdict),
+                   bullets(esc(s) for _, _, s in bw.checks), para("Pole-zero analysis: " + esc(" ".join(pz))), figs)
+
+
+def conclusion(ranking, lab: dict) -> str:
+    """The model to use for what (simulation or one-step prediction) and why."""
+    from maglev.study.report.verdicts import conclusion as decide
+
+    c = decide(ranking.table, lab.get("lab.slope"))
+    n = len(ranking.cautions)
+    tail = (f"{n} caution(s) drawn from the numbers qualify the ranking (Appendix B)." if n else
+            "No caution applies to the ranking (Appendix B).")
+    return section("conclusion", "9. Conclusion", bullets(esc(s) for s in c.sentences), para(esc(tail)))
+
+
+def cautions(items: list) -> str:
+    """What the numbers undermine (:mod:`maglev.study.cautions`): the ranking's fine print."""
+    if not items:
+        return section("cautions", "B. Cautions", para("No caution applies: the top model passes its residual "
+                                                      "tests, beats y(t−1) and simulates about as well as it "
+                                                      "predicts; no structure's best order is at the edge of the "
+                                                      "swept grid."))
+    return section("cautions", f"B. Cautions ({len(items)})",
+                   para("Each is computed from the runs' numbers; read the ranking with them in mind."),
+                   bullets(esc(c.text) for c in items))
+
+
+def all_runs(ranking, models: dict, tol: float = CANCEL_TOL) -> str:
+    """Appendix C: every ranked run, and every run's near cancellations."""
+    cols = ["rank", "name", "structure", "orders", "dataset", "val_fit", "val_fit_naive", "val_fit_sim", "n_params",
+            "aic", "val_dataset"]
+    flagged = [f"{esc(r['name'])}: {w} pole {cz(p)} vs zero {cz(z)} (|p−z| = {num(d, 3)})"
+               for _, r in ranking.table.iterrows() for w, p, z, d in models[r["run_id"]].near_cancellations(tol)]
+    return section("all-runs", "C. Every run", table(ranking.table[[c for c in cols if c in ranking.table]]),
+                   para(f"Near pole-zero cancellations (|p−z| &lt; {tol}):") + bullets(flagged) if flagged else "")
+
+
+def extra_figures(figures: list[tuple[bytes | None, str]]) -> str:
+    """Appendix D: the figures the main text refers to but has no room for."""
+    return section("extra-figures", "D. Further figures", *(img(data, caption, "half") for data, caption in figures))
 
 
 def resonance_rise(b) -> bool:
@@ -384,110 +450,39 @@ def resonance_rise(b) -> bool:
     return bool(peak) and mag[peak] - mag[0] > 2 * np.hypot(sd[peak], sd[0])
 
 
-def _friction_text(p) -> str:
-    """The friction law F_f of the parameter set ``p`` (maglev.sim.plant.LevitatorParams), with its numbers."""
-    parts = [f"viscous {num(p.gamma_upper, 3)} N s/m on the upper magnet in motion"]
-    if p.gamma_quiet_upper > 0:
-        parts.append(f"up to {num(p.gamma_quiet_upper, 3)} N s/m more while the input is quiet for its class")
-    if p.gamma_aged_upper > 0:
-        parts.append(f"up to {num(p.gamma_aged_upper, 3)} N s/m more on a contact that has rested")
-    if p.coulomb_upper + p.stiction_upper > 0:
-        dry = f"Coulomb {num(p.coulomb_upper, 4)} N"
-        if p.stiction_upper > 0:
-            dry += f" + Stribeck {num(p.stiction_upper, 4)} N"
-        parts.append(dry + (" dry friction, set-valued (the magnet sticks)" if p.sticks else " dry friction"))
-    return "friction F_f: " + ", ".join(parts)
 
 
-def preparation(lab: dict, ts_used: list[float], configs: dict, table_: pd.DataFrame) -> str:
-    """The lab's preparation tasks (§4): the physical model, why it is nonlinear, its linearisation at the
-    sweep's working point beside the best linear approximations, the structure it suggests against what
-    identification found, and the code of ``get_average`` / ``get_stationary_averages``."""
+def preparation(p, lin, noise, lab: dict, table_: pd.DataFrame) -> str:
+    """§4: the physical model derived (:func:`maglev.study.report.preparation.derivation`), its linearisation at u*,
+    the structure and noise model it suggests against what the sweep found, and similar set-ups; the code of
+    getAverage and getStationaryAverages is attached in Appendix A.  ``p``: the rig's LevitatorParams; ``lin``:
+    the first-principles linearisation (None without a working point); ``noise``: the staircase's noise facts."""
+    from maglev.study.report.preparation import derivation
+
+    title = "1. Preparation tasks"
+    if lin is None:
+        return section("preparation", title, para("No working point: the sweep's lab steps were not logged."))
+    d = derivation(p, lin, noise, int(lab["lab.nk"]) if "lab.nk" in lab else None)
+    sim = table_.groupby("structure")["val_fit_sim"].mean().sort_values(ascending=False)
+    found = ("In the sweep, mean simulation FIT by structure: " + ", ".join(f"{s.upper()} {num(f)} %"
+                                                                          for s, f in sim.items()) + ".")
+    return section("preparation", title,
+                   "<h3>State-space model (task 1)</h3>", bullets(esc(t) for t in d["model"]),
+                   "<h3>Is the model linear?</h3>", para(esc(" ".join(d["nonlinear"]))),
+                   "<h3>Linearisation at the working point</h3>", para(esc(" ".join(d["linear"]))),
+                   "<h3>Does it suggest a model structure?</h3>", para(esc(" ".join(d["structure"]) + " " + found)),
+                   "<h3>Similar physical set-ups</h3>", para(esc(" ".join(d["similar"]))),
+                   para("Tasks 2–3, getAverage and getStationaryAverages: the code is attached in Appendix A and is what "
+                        "§2's working region is computed with."))
+
+
+def attached_code() -> str:
+    """Appendix A: the code of the lab's getAverage and getStationaryAverages (maglev/lab/averages.py)."""
     import inspect
 
-    import control as ct
-
     from maglev.lab import averages
-    from maglev.sim.plant import DEFAULT_PLANT, rig
-    from maglev.study.datasets import dataset_bla, plant_name
-    from maglev.study.figures import preparation_figure
 
-    plants = sorted({plant_name(c["dataset"]) for c in configs.values() if c["dataset"]["source"] == "sim"})
-    lev = rig(plants[0] if plants else DEFAULT_PLANT)
-    p = lev.params
-    u_star = lab.get("lab.u_star")
-    Ts = ts_used[0] if ts_used else 0.001
-    model = [
-        "Two magnets on a glass rod, lower height z and upper height h (cm), mass m = "
-        f"{num(p.m, 3)} kg each; the coil current I acts on both. With the state x = (z, h, ż, ḣ):",
-        "m z̈ = I / (a (z + b)^n) − c / (h − z + d)^4 − m g − F_f(ż)   (coil push, repulsion, gravity, bushing friction)",
-        "m ḧ = −κ I / (a (h + b)^n) + c / (h − z + d)^4 − m g − F_f(ḣ)   (coil pull, repulsion, gravity, friction)",
-        ("y = y_off + h" + (f" + max(h − h_k, 0)² / (D − h) (the laser's scale stretches above h_k = "
-                            f"{num(p.sensor_knee, 3)} cm, towards D = {num(p.sensor_pole, 3)} cm)" if p.sensor_pole else "")
-         + " (+ sensor noise, ADC quantisation); I = min(u, i_sat) (current regulator)."),
-        f"Fitted to the rig (maglev calibrate): a = {num(p.a, 4)}, b = {num(p.b, 3)} cm, n = {num(p.n_coil, 3)}, "
-        f"κ = {num(p.kappa, 3)}, c = {num(p.c, 0)} N cm⁴, d = {num(p.d, 3)} cm, i_sat = {num(p.i_sat, 3)} A, "
-        f"y_off = {num(p.y_off, 3)} cm; {_friction_text(p)} (docs/simulator.md; simulator parameter set "
-        f"{', '.join(plants) or DEFAULT_PLANT}).",
-    ]
-    causes = [f"the coil and repulsion forces fall off with a power of distance (n = {num(p.n_coil, 3)} and 4)",
-              "the bushings' friction holds small motions and releases large ones (the response depends on the "
-              "input's amplitude and class)", "the lower magnet rests on its seat below lift-off",
-              "the upper one hits a stop", f"the regulator saturates at {num(p.i_sat, 3)} A"]
-    if p.sensor_pole:
-        causes.append(f"the sensor's scale stretches above {num(p.sensor_knee, 3)} cm")
-    nonlinear = f"It is nonlinear because {', '.join(causes[:-1])}, and {causes[-1]}."
-    parts = [bullets(esc(t) for t in model), para(esc(nonlinear))]
-    if u_star is None:
-        return section("preparation", "Preparation tasks", *parts,
-                       para("No working point: the sweep's lab steps were not logged."))
-    lin = lev.linearize(float(u_star), Ts=Ts)
-    eq = lin.equilibrium
-    modes = "; ".join(f"ωn = {num(w, 1)} rad/s, ζ = {num(z, 3)}" for w, z in lin.modes())
-    poles = ", ".join(cz(complex(x)) for x in ct.poles(lin.sys_d))
-    zeros = ", ".join(cz(complex(x)) for x in ct.zeros(lin.sys_d)) or "none"
-    n_states = lin.sys_c.nstates
-    facts = [f"Working point u* = {num(u_star)} A: equilibrium z = {num(eq.z, 3)} cm, h = {num(eq.h, 3)} cm, "
-             f"y = {num(eq.y, 3)} cm{' (lower magnet seated)' if eq.lower_seated else ''}.",
-             f"Linearisation (small-signal Jacobian, {n_states} states): static gain {num(lin.dc_gain, 3)} cm/A; "
-             f"continuous modes {modes}. At Ts = {num(1000 * Ts, 2)} ms: poles {poles}; zeros {zeros}; "
-             f"{lin.delay_samples} sample(s) of pure delay beyond the logger's one-sample read-then-write lag."]
-    blas = {}
-    for name, c in configs.items():
-        if c["dataset"]["source"] == "sim":
-            b = dataset_bla(c["dataset"])
-            blas[name] = b
-            keep = b.w > 0
-            peak = int(np.argmax(np.abs(b.G[keep])))
-            db = b.magnitude_db[keep]
-            resonance = (f"resonance peak {num(db[peak], 1)} dB at {num(b.w[keep][peak], 1)} rad/s "
-                         f"({num(db[peak] - db[0], 1)} dB above the low-frequency gain)" if resonance_rise(b) else
-                         "no resonance peak (|G| rises nowhere above its value at the lowest frequency by more "
-                         "than two standard errors)")
-            facts.append(f"Best linear approximation for {esc(name)} ({esc(c['dataset']['input_class'])} input, "
-                         f"{num(c['dataset']['low'])}–{num(c['dataset']['high'])} A): gain {num(abs(b.G[keep][0]), 3)} "
-                         f"cm/A at {num(b.w[keep][0], 1)} rad/s, {resonance}; simulation FIT ceiling "
-                         f"{num(b.fit_ceiling, 1)} %.")
-    facts.append("The Jacobian is the model of infinitesimal motion about a rest, heavily damped by the friction's "
-                 "damping at rest"
-                 + (" (it leaves out the set-valued dry friction, which has no slope at rest and holds the magnets "
-                    "still under inputs that small)" if p.sticks else "")
-                 + "; the lab's inputs move the magnets far beyond that, so "
-                 + ("the identified models are compared with the best linear approximation of their input class, as "
-                    "in the figure below." if blas else
-                    "it is not what a model identified from them should match. This sweep has no simulated dataset, "
-                    "so it has no best linear approximation to compare with; the figure shows the Jacobian alone."))
-    best = table_.iloc[0]
-    suggestion = (f"The physical model suggests {n_states} poles in G (OE/BJ nf = {n_states}, ARX/ARMAX "
-                  f"na = {n_states}) and a delay of about {lin.delay_samples + 1} sample(s). ")
-    if "lab.arx_na" in lab:
-        suggestion += (f"ARX order selection on the data (arxstruc/selstruc, AIC) picked na = {int(lab['lab.arx_na'])}, "
-                       f"nb = {int(lab['lab.arx_nb'])} and delayest nk = {int(lab['lab.nk'])}. ")
-    suggestion += (f"Identification ranked {esc(best['name'])} first ({esc(best['structure'])} orders "
-                   f"{esc(best['orders'])}).")
-    fig = img(png(preparation_figure(lin, blas)), "small-signal Jacobian and best linear approximations")
     code = "".join(f"<pre><code>{esc(inspect.getsource(f))}</code></pre>"
                    for f in (averages.get_average, averages.get_stationary_averages))
-    return section("preparation", "Preparation tasks", *parts, bullets(facts), para(suggestion), fig,
-                   para("The code of the lab's getAverage and getStationaryAverages (maglev/lab/averages.py):"),
-                   code)
+    return section("code", "A. Attached code: getAverage and getStationaryAverages",
+                   para("maglev/lab/averages.py (Python; the lab's getAverage and getStationaryAverages):"), code)

@@ -1,0 +1,204 @@
+"""The report's verdicts on constructed numbers: binary vs uniform, best vs worst, the conclusion change their
+verdict when the numbers change, and a residual test on a record the input does not explain is reported as
+without power (maglev.study.report.verdicts, and the sections that print them)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from maglev.study.report import verdicts as v
+
+DATASETS = {"bin": "binary", "uni_w": "uniform", "uni_n": "uniform"}
+
+
+def comparison(own: dict[str, float], u0: dict[str, float] | None = None) -> pd.DataFrame:
+    """One structure's runs: two orders per dataset, the higher order ``own[ds]`` FIT on its own data."""
+    rows = []
+    for ds, cls in DATASETS.items():
+        for order, fit in ((4, own[ds] - 2.0), (5, own[ds])):
+            rows.append({"name": f"bj{order} {ds}", "dataset": ds, "input_class": cls, "val_fit": fit,
+                         "val_fit_naive": {"bin": 82.0, "uni_w": 83.0, "uni_n": 86.0}[ds],
+                         "u0": (u0 or {}).get(ds, 2.75), "orders": f"[{order}]"})
+    return pd.DataFrame(rows)
+
+
+def common(matrix: dict[str, dict[str, float]]) -> pd.DataFrame:
+    """FIT of every run on every validation set; ``matrix[est][val]`` for the higher orders, 1 point less for the
+    lower ones."""
+    out = {}
+    for est in DATASETS:
+        for order, drop in ((4, 1.0), (5, 0.0)):
+            out[f"bj{order} {est}"] = {f"{val}[val]": matrix[est][val] - drop for val in DATASETS}
+    return pd.DataFrame(out).T
+
+
+OWN_CLASS = {"bin": {"bin": 99.0, "uni_w": 87.0, "uni_n": 82.0},
+             "uni_w": {"bin": 93.0, "uni_w": 93.0, "uni_n": 90.0},
+             "uni_n": {"bin": 80.0, "uni_w": 86.0, "uni_n": 92.0}}
+BINARY_EVERYWHERE = {"bin": {"bin": 99.0, "uni_w": 95.0, "uni_n": 94.0},
+                     "uni_w": {"bin": 90.0, "uni_w": 93.0, "uni_n": 90.0},
+                     "uni_n": {"bin": 80.0, "uni_w": 86.0, "uni_n": 92.0}}
+
+
+def test_binary_vs_uniform_each_class_wins_on_its_own_and_the_wide_uniform_model_transfers_best():
+    cc = v.class_comparison(comparison({d: OWN_CLASS[d][d] for d in DATASETS}), common(OWN_CLASS), 2.75, 2.5)
+    assert cc.higher == "split" and cc.own_class_wins
+    assert cc.models == {"bin": "bj5 bin", "uni_w": "bj5 uni_w", "uni_n": "bj5 uni_n"}  # each dataset's best order
+    # transfer: mean FIT on the other records' validation sets, by hand
+    assert cc.transfer["uni_w"] == pytest.approx((93.0 + 90.0) / 2) and cc.transfer.idxmax() == "uni_w"
+    text = " ".join(cc.sentences)
+    assert "Neither class is higher everywhere: the binary-input model is higher on 1 and the uniform-input model " \
+           "on 2 of the 3 common validation sets." in text
+    assert "Each validation set is won by a model estimated on its own input class." in text
+    assert "the model from uni_w (uniform) transfers best: mean FIT 91.50 %" in text
+    # y(t−1)'s FIT is the baseline: 99 % on the binary record is 17 points above y(t−1)'s 82 %
+    assert "y(t−1) alone scores 82.00 % there, so they add +17.00 and +11.00 points to it" in text
+    assert "so the comparison is one of input classes, not of operating points" in text
+
+
+def test_binary_vs_uniform_verdict_changes_with_the_numbers():
+    cc = v.class_comparison(comparison({d: BINARY_EVERYWHERE[d][d] for d in DATASETS}, {"uni_n": 2.1}),
+                            common(BINARY_EVERYWHERE), 2.75, 2.5)
+    assert cc.higher == "binary" and not cc.own_class_wins
+    assert cc.sentences[0].startswith("The binary-input model is higher on all 3 common validation sets.")
+    assert "The model estimated on the other class wins on uni_n, uni_w" in cc.sentences[0]
+    assert cc.transfer.idxmax() == "bin"
+    assert any("uni_n is centred at 2.10 A, not at u* = 2.75 A" in s for s in cc.sentences)
+
+
+def facts(name: str, **kw) -> v.ModelFacts:
+    base = dict(name=name, rank=1, val_fit=99.0, val_fit_sim=20.0, val_dataset="d[val]", explained=0.4, white=False,
+                whiteness_p=1e-9, independent=False, independence_p=1e-9, unit_poles=0, cancellations=0,
+                nmp_zeros=0, dominant=(100.0, 0.1), dcgain=0.62)
+    return v.ModelFacts(**{**base, **kw})
+
+
+def test_best_vs_worst_explains_which_is_better_and_flips_with_the_numbers():
+    best = facts("B")
+    worst = facts("W", rank=24, val_fit=9.0, val_fit_sim=9.0, unit_poles=1, cancellations=3, dcgain=0.93)
+    bw = v.best_vs_worst(best, worst, slope=0.62)
+    assert bw.better == "best" and bw.tally == {"best": 4, "worst": 0}  # simulation, gain, unit circle, cancellations
+    # now the best by one-step FIT simulates badly, its gain is off and it has a pole on the unit circle
+    best2 = facts("B", val_fit_sim=6.9, dcgain=0.81, unit_poles=1)
+    worst2 = facts("W", rank=21, val_fit=16.0, val_fit_sim=23.9, dcgain=0.61, white=True, whiteness_p=0.3)
+    bw2 = v.best_vs_worst(best2, worst2, slope=0.62)
+    assert bw2.better == "worst" and bw2.tally == {"best": 0, "worst": 4}
+    said = {check: side for check, side, _ in bw2.checks}
+    assert said["simulation"] == "worst" and said["static gain"] == "worst" and said["whiteness"] == "worst"
+    assert said["unit-circle poles"] == "worst"
+    gain = next(s for c, _, s in bw2.checks if c == "static gain")
+    assert "B 0.810 cm/A (+31 %), W 0.610 cm/A (-2 %)" in gain and "(within 20%)" in gain
+
+
+def test_an_independence_test_on_an_unexplained_record_is_without_power_not_a_pass():
+    """The worst passes the independence test (p = 0.996), but on its record every model simulates at FIT −1.3 %:
+    the input explains nothing, so the pass is reported as without power and counted for neither model."""
+    table = pd.DataFrame({"val_dataset": ["a[val]", "a[val]", "b[val]"], "val_fit_sim": [-1.3, -1.6, 30.0]})
+    explained = v.explained_by_dataset(table)
+    assert explained["a[val]"] == 0.0 and explained["b[val]"] == pytest.approx(1 - 0.7 ** 2)
+    worst = facts("W", explained=explained["a[val]"], independent=True, independence_p=0.996, val_dataset="a[val]")
+    best = facts("B", explained=explained["b[val]"], independent=False, independence_p=1e-5, val_dataset="b[val]")
+    assert not worst.power and best.power
+    bw = v.best_vs_worst(best, worst)
+    check, side, sentence = next(c for c in bw.checks if c[0] == "independence")
+    assert side is None  # a pass without power is no evidence for the worst
+    assert ("the independence test of W (p = 0.996) is without power: on a[val] the input explains nothing of the "
+            "output (less than 5%") in sentence and "not a pass in its favour" in sentence
+    assert "B fails the independence test (p = 1e-05; the input explains 51.0 % of the output on b[val], so the " \
+           "test has power)" in sentence
+    # the same pass where the input explains 6 % of the output counts for the worst
+    worst6 = facts("W", explained=0.06, independent=True, independence_p=0.996)
+    assert next(c for c in v.best_vs_worst(best, worst6).checks if c[0] == "independence")[1] == "worst"
+
+
+def test_the_best_vs_worst_section_reports_the_unpowered_test_from_the_models():
+    """The section itself, on two fitted models: the worst is validated on a record whose output is noise
+    independent of its input, so its independence test passes without power."""
+    from maglev import IOData, arx
+    from maglev.study.report.sections import best_vs_worst
+    from maglev.validation import compare, resid
+
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(4000)
+    y = np.convolve(u, [0, 0.5, 0.3], mode="full")[:4000] + 0.05 * rng.standard_normal(4000)
+    good, noise = IOData(u, y, 0.002, name="good"), IOData(u, rng.standard_normal(4000), 0.002, name="noise")
+    rows, models, resids = [], {}, {}
+    for rank, (name, data) in enumerate((("good", good), ("noise", noise)), start=1):
+        est, val = data.split(0.5)
+        m = arx(est, 2, 2, 1)
+        rid = f"run-{name}"
+        models[rid], resids[rid] = m, resid(val, m)
+        rows.append({"rank": rank, "name": f"arx {name}", "run_id": rid, "val_dataset": f"{name}[val]",
+                     "val_fit": compare(val, m, 1)[0], "val_fit_sim": compare(val, m, math.inf)[0],
+                     "val_fit_naive": 0.0, "dcgain": m.dcgain()})
+    table = pd.DataFrame(rows)
+    ranking = SimpleNamespace(best=table.iloc[0], worst=table.iloc[1], table=table, resids=resids, files={})
+    html = best_vs_worst(ranking, models, {"lab.slope": 0.8})
+    assert resids["run-noise"].independent  # it passes ...
+    assert "the independence test of arx noise" in html and "is without power" in html  # ... without power
+    assert "arx good passes the independence test" in html and "so the test has power" in html
+    assert "better model of the plant" in html
+
+
+def test_conclusion_names_the_model_for_simulation_and_for_prediction_and_changes_with_the_numbers():
+    table = pd.DataFrame([
+        {"rank": 1, "name": "bj bin", "val_fit": 98.6, "val_fit_naive": 81.8, "val_fit_sim": 6.9, "dcgain": 0.81,
+         "val_dataset": "bin[val]"},
+        {"rank": 2, "name": "bj wide", "val_fit": 91.3, "val_fit_naive": 83.9, "val_fit_sim": 27.1, "dcgain": 0.41,
+         "val_dataset": "wide[val]"},
+        {"rank": 3, "name": "oe bin", "val_fit": 23.9, "val_fit_naive": 81.8, "val_fit_sim": 23.9, "dcgain": 0.61,
+         "val_dataset": "bin[val]"}])
+    c = v.conclusion(table, slope=0.62)
+    assert (c.simulation, c.prediction) == ("bj wide", "bj bin")
+    text = " ".join(c.sentences)
+    assert "Where the static response matters, oe bin is the better choice" in text
+    assert "on the same validation data oe bin (#3) simulates at 23.90 %" in text
+    # a #1 no better than y(t−1) one step ahead, and the best simulator with the right gain: one verdict changes
+    table2 = table.assign(val_fit_naive=[98.2, 90.0, 98.2], dcgain=[0.81, 0.60, 0.61])
+    c2 = v.conclusion(table2, slope=0.62)
+    assert (c2.simulation, c2.prediction) == ("bj wide", None)
+    assert "For one-step prediction no model is needed" in " ".join(c2.sentences)
+    assert "Where the static response matters" not in " ".join(c2.sentences)
+
+
+@pytest.mark.parametrize("wn, zeta", [(80.0, 0.13), (220.0, 0.05), (30.0, 0.9)])
+def test_dominant_mode_recovers_a_known_continuous_mode(wn, zeta):
+    Ts = 0.002
+    s = complex(-zeta * wn, wn * math.sqrt(1 - zeta ** 2))
+    fast = np.exp(-2000.0 * Ts)
+    poles = np.array([np.exp(s * Ts), np.exp(s.conjugate() * Ts), fast])
+    got = v.dominant_mode(poles, Ts)
+    assert got == pytest.approx((wn, zeta), rel=1e-9)
+
+
+def test_explained_share_is_the_variance_a_simulation_fit_accounts_for():
+    assert v.explained_share(100.0) == 1.0 and v.explained_share(0.0) == 0.0 and v.explained_share(-1.3) == 0.0
+    assert v.explained_share(50.0) == pytest.approx(0.75)
+    assert math.isnan(v.explained_share(math.nan))
+
+
+def test_a_logged_lab_decision_is_printed_in_its_section_with_rule_choice_and_evidence():
+    """The decisions the sweep logs (lab/decisions.json, maglev.lab.decision) appear in their §5 sections: rule,
+    choice and reasons there; a short evidence table there too, a long one in Appendix E."""
+    from maglev.lab.decision import Decision
+    from maglev.study.report.sections import EVIDENCE_ROWS, decision, decisions_evidence
+
+    short = Decision(name="delay", rule="largest nk whose residuals stay white", choice={"nk": 2, "Ts": 0.002},
+                     evidence=[{"nk": k, "outside": 0.5 * k} for k in range(1, 4)], reasons=["nk = 3 fails <x>"])
+    long = Decision(name="records", rule="inside the region", choice={"uniform": ["a", "b"], "binary": ["c"]},
+                    evidence=[{"record": f"r{i}", "inside": i % 2 == 0} for i in range(EVIDENCE_ROWS + 3)])
+    decisions = {"delay": short, "records": long}
+    html = decision(decisions, "delay")
+    assert "rule: largest nk whose residuals stay white; choice: nk: 2, Ts: 0.002" in html
+    assert "why: nk = 3 fails &lt;x&gt;" in html and html.count("<tr>") == 4  # header + 3 evidence rows
+    html = decision(decisions, "records")
+    assert "choice: uniform: a, b, binary: c" in html and f"evidence: {EVIDENCE_ROWS + 3} rows, Appendix E" in html
+    assert "<tr>" not in html
+    appendix = decisions_evidence(decisions)
+    assert "<h3>records</h3>" in appendix and appendix.count("<tr>") == EVIDENCE_ROWS + 4 and "<h3>delay" not in appendix
+    assert decision(decisions, "orders") == "" and decision({}, "delay") == ""
