@@ -181,7 +181,7 @@ def test_the_cluster_entries_compose_to_a_server_from_mlflows_variables_and_magl
     cfg = cfg_for(["tracking=cluster", "hydra/launcher=slurm"], hydra=True)
     plain = task(cfg)
     assert plain["tracking"]["uri"] == "http://login1:5000" and plain["tracking"]["artifact_location"] is None
-    assert plain["tracking"]["max_retries"] == 6 and not plain["tracking"]["reap"]
+    assert plain["tracking"]["max_retries"] == 7 and not plain["tracking"]["reap"]
     check(plain)
     assert cfg.hydra.launcher._target_ == "hydra_plugins.maglev_launcher.slurm.SlurmLauncher"
     assert cfg.hydra.launcher.timeout_min == 30 and cfg.hydra.launcher.mem_gb == 4
