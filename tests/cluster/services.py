@@ -272,7 +272,7 @@ class Server:
         return name, password
 
 
-def start_server(pg: Postgres) -> Server:
+def start_server(pg: Postgres, workers: int = 2) -> Server:
     """The recipe of docs/cluster.md: backend store and auth database on PostgreSQL (password from
     ``PGPASSWORD``, not in a URI), artifacts served by the server, basic auth with every user allowed to
     edit (a shared study), one admin whose password is random."""
@@ -288,7 +288,7 @@ def start_server(pg: Postgres) -> Server:
            "MLFLOW_FLASK_SERVER_SECRET_KEY": secrets.token_hex(16), "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
     cmd = [sys.executable, "-m", "mlflow", "server", "--app-name", "basic-auth",
            "--backend-store-uri", pg.uri("mlflow"), "--artifacts-destination", str(home / "artifacts"),
-           "--host", "127.0.0.1", "--port", str(port), "--workers", "2"]
+           "--host", "127.0.0.1", "--port", str(port), "--workers", str(workers)]
     server = Server(home, port, cmd, env, admin)
     try:
         server.start()
