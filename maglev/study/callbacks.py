@@ -305,6 +305,9 @@ class SweepCallback(Callback):
         return [r.info.run_id for r in running]
 
 
+REFERENCE_WAIT_S = 600.0  # how long a sweep's ranking waits for its configs' runs in other launches
+
+
 class RankingCallback(Callback):
     """At the end of a multirun: rank the sweep, log the ranking run and write the report.
 
@@ -328,9 +331,25 @@ class RankingCallback(Callback):
             log.warning("ranking skipped: no parent run id in %s", config.hydra.sweep.dir)
             return
         try:
+            self._wait_for_references(task["tracking"], parent)
             rank_and_report(task["tracking"]["uri"], task["tracking"]["experiment"], parent,
                             self.structure, self.report_dir)
         except SweepError as exc:
             log.warning("ranking/report not made: %s", exc)
         except Exception as exc:  # noqa: BLE001 — a report bug must not fail a finished sweep
             log.exception("ranking/report failed: %s: %s", type(exc).__name__, exc)
+
+    @staticmethod
+    def _wait_for_references(tracking_cfg: dict, parent: str) -> None:
+        """Configs of this sweep that another launch is running (a second user's sweep into the same server):
+        wait for their runs (at most ``REFERENCE_WAIT_S``), so the ranking has every config of the sweep."""
+        client, exp_id = tracking.connect(tracking_cfg)
+        running = claims.wait_for_references(client, exp_id, parent, 0)
+        if not running:
+            return
+        log.info("waiting (at most %.0f s) for %d run(s) of other launches that hold configs of this sweep: %s",
+                 REFERENCE_WAIT_S, len(running), ", ".join(r.info.run_name for r in running))
+        left = claims.wait_for_references(client, exp_id, parent, REFERENCE_WAIT_S)
+        if left:
+            log.warning("%d run(s) still RUNNING after %.0f s are left out of the ranking: %s", len(left),
+                        REFERENCE_WAIT_S, ", ".join(r.info.run_name for r in left))

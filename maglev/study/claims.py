@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import socket
+import time
 from pathlib import Path
 
 from mlflow import MlflowClient
@@ -111,3 +112,18 @@ def referenced(client: MlflowClient, exp_id: str, parent_id: str) -> list:
     """Model runs of other sweeps that the sweep ``parent_id`` counts as its own (:func:`reference`)."""
     return client.search_runs([exp_id], filter_string=f"tags.`{REF_PREFIX}{parent_id}` != '' and tags.kind = 'model'",
                               max_results=50000)
+
+
+def wait_for_references(client: MlflowClient, exp_id: str, parent_id: str, timeout_s: float,
+                        poll_s: float = 2.0) -> list:
+    """Wait, at most ``timeout_s``, until no run the sweep ``parent_id`` references is RUNNING in a live
+    process (another user's launch or an overlapping sweep holds some of its configs), so that its ranking
+    includes them; returns those still RUNNING at the end (left out of the ranking, as ``ignored_running``)."""
+    from maglev.study.reap import stale
+
+    end = time.monotonic() + timeout_s
+    while True:
+        running = [r for r in referenced(client, exp_id, parent_id) if r.info.status == "RUNNING" and not stale(r)]
+        if not running or time.monotonic() >= end:
+            return running
+        time.sleep(poll_s)

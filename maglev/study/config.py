@@ -78,6 +78,11 @@ def check(cfg: dict) -> None:
         raise StudyConfigError(f"tracking.max_retries must be in [0, 10], got {tracking['max_retries']}")
     if tracking.get("timeout_s", 1) < 1:
         raise StudyConfigError(f"tracking.timeout_s must be >= 1 (whole seconds), got {tracking['timeout_s']}")
+    scheme, sep, rest = str(tracking.get("uri", "")).partition("://")
+    if sep and "@" in rest.split("/", 1)[0]:  # every run logs tracking.uri as a param: no password in it
+        shown = f"{scheme}://…@{rest.split('/', 1)[0].rsplit('@', 1)[1]}"
+        raise StudyConfigError(f"tracking.uri must not hold credentials ({shown}): set MLFLOW_TRACKING_USERNAME "
+                               "and MLFLOW_TRACKING_PASSWORD instead")
     check_lengths(ds, spec, study, raw_length(ds, cfg["data_dir"]))
 
 

@@ -95,17 +95,25 @@ def http_settings(max_retries: int, timeout_s: int, override: bool = True) -> No
             os.environ.setdefault(key, value)
 
 
-def check_reachable(uri: str, timeout_s: float) -> None:
-    """One ``GET <uri>/health`` without retries; :class:`TrackingUnreachable` unless it answers 200."""
+def check_reachable(uri: str, timeout_s: float, retries: int = 0) -> None:
+    """``GET <uri>/health`` until it answers 200, at most ``1 + retries`` times, waiting 0, 2, 4 … s between
+    as MLflow's own retries do (so a job that starts while the server restarts waits for it, within the
+    same bound as every other call); :class:`TrackingUnreachable` after the last."""
     import requests
 
-    try:
-        answer = requests.get(uri.rstrip("/") + "/health", timeout=timeout_s)
-    except requests.RequestException as exc:
-        reason = exc.__context__ or exc.__cause__ or exc
-        raise TrackingUnreachable(uri, f"{type(exc).__name__}: {_short(reason)}") from None
-    if answer.status_code != 200:
-        raise TrackingUnreachable(uri, f"/health answered HTTP {answer.status_code}")
+    for attempt in range(retries + 1):
+        if attempt > 1:
+            time.sleep(2 ** (attempt - 1))
+        try:
+            answer = requests.get(uri.rstrip("/") + "/health", timeout=timeout_s)
+        except requests.RequestException as exc:
+            reason = exc.__context__ or exc.__cause__ or exc
+            why = f"{type(exc).__name__}: {_short(reason)}"
+            continue
+        if answer.status_code == 200:
+            return
+        why = f"/health answered HTTP {answer.status_code}"
+    raise TrackingUnreachable(uri, why)
 
 
 def _short(exc: BaseException) -> str:
@@ -121,7 +129,8 @@ def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None =
         given = max_retries is not None
         http_settings(max_retries if given else HTTP_DEFAULTS["max_retries"],
                       timeout_s if timeout_s is not None else HTTP_DEFAULTS["timeout_s"], override=given)
-        check_reachable(uri, float(os.environ["MLFLOW_HTTP_REQUEST_TIMEOUT"]))
+        check_reachable(uri, float(os.environ["MLFLOW_HTTP_REQUEST_TIMEOUT"]),
+                        int(os.environ["MLFLOW_HTTP_REQUEST_MAX_RETRIES"]))
         return MlflowClient(tracking_uri=uri)
     with store_lock(uri):
         client = MlflowClient(tracking_uri=uri)
@@ -343,7 +352,15 @@ def library_versions() -> dict[str, str]:
 
 
 def process_tags() -> dict[str, str]:
-    return {"host": socket.gethostname(), "pid": str(os.getpid()), **git_info(), **library_versions()}
+    """``host``, ``pid`` (for the reaper), the checkout, the numeric libraries, and in a Slurm job its id
+    (``slurm_job``: ``<array>_<task>`` as submitit's ``.submitit/<id>/`` log folders, ``squeue`` and
+    ``scancel`` name it)."""
+    tags = {"host": socket.gethostname(), "pid": str(os.getpid()), **git_info(), **library_versions()}
+    array, task = os.environ.get("SLURM_ARRAY_JOB_ID"), os.environ.get("SLURM_ARRAY_TASK_ID")
+    job = f"{array}_{task}" if array and task else os.environ.get("SLURM_JOB_ID")
+    if job:
+        tags["slurm_job"] = job
+    return tags
 
 
 # ---------------------------------------------------------------------------- queries
