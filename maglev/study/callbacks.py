@@ -33,7 +33,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, datasets, render, tracking
+from maglev.study import claims, datasets, render, shutdown, tracking
 from maglev.study.config import StudyConfigError, check, task_config
 
 log = logging.getLogger("maglev.study")
@@ -158,8 +158,10 @@ class SweepCallback(Callback):
         jobs = check_sweep(config)
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
         datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
+        shutdown.mark_launcher()  # the processes started from here end with this one
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
-            render.start()  # the renderer's process imports while the store and the lab steps are made
+            # its process imports while the store and the lab steps are made; MLflow's HTTP bounds first
+            render.start(tracking.tracking_env(task["tracking"]))
         client, exp_id = tracking.connect(task["tracking"])
         self.client, self.exp_id = client, exp_id
         sid = sweep_id(config, task)
@@ -245,10 +247,11 @@ class SweepCallback(Callback):
         """atexit: the sweep did not reach on_multirun_end (a job raised, Ctrl-C, SIGTERM)."""
         if self.parent is None:
             return
-        from maglev.study import shutdown
-
-        render.abandon()
+        render.abandon(write=tracking.unreachable is None)
         why = signal.Signals(shutdown.received).name if shutdown.received else "stopped before its end"
+        if tracking.unreachable is not None:  # nothing can be marked; the exit line says why
+            claims.release_sweep(self.lock)
+            return
         try:
             if self.fresh and not tracking.children(self.client, self.exp_id, self.parent):
                 self.client.delete_run(self.parent)

@@ -135,6 +135,8 @@ def run(cfg: DictConfig) -> float | None:
     from maglev.study import shutdown
 
     shutdown.install()  # joblib and submitit workers never run study.py's own installation
+    if shutdown.launcher() not in (None, os.getpid()):  # a worker of this machine's launcher: end with it
+        shutdown.exit_with(shutdown.launcher())
     plain = plain_config(cfg)
     check(plain)
     chash = config_hash(plain)

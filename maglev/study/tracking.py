@@ -67,8 +67,15 @@ class TrackingUnreachable(SystemExit):
     """
 
     def __init__(self, uri: str, why: str) -> None:
+        global unreachable
+        unreachable = uri
         super().__init__(f"maglev: the MLflow tracking server {uri} cannot be reached ({why}); start it, "
                          "or fix tracking.uri")
+
+
+# the URI of a server this process found unreachable (the cleanup at exit then writes nothing: every call
+# would wait out its retries against a dead server)
+unreachable: str | None = None
 
 
 # bounded HTTP retries when the config says nothing (CLI commands): ≈ 2 s on a refused port
@@ -79,16 +86,26 @@ def is_http(uri: str) -> bool:
     return uri.startswith(("http://", "https://"))
 
 
-def http_settings(max_retries: int, timeout_s: int, override: bool = True) -> None:
-    """Bound MLflow's HTTP retries (it reads these variables on every request; workers inherit them).
+def http_env(max_retries: int, timeout_s: int) -> dict[str, str]:
+    """MLflow's variables bounding its HTTP retries: ``max_retries`` retries (urllib3 waits 0, 2, 4 … s between
+    attempts) and ``timeout_s`` per attempt (MLflow takes whole seconds, at most 10 retries)."""
+    return {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": str(int(max_retries)), "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+            "MLFLOW_HTTP_REQUEST_TIMEOUT": str(int(timeout_s)),
+            "MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT": "true"}  # else every run's end prints two URLs
 
-    ``max_retries`` retries (urllib3 waits 0, 2, 4 … s between attempts) and ``timeout_s`` per attempt (MLflow
-    takes whole seconds, at most 10 retries).  ``override=False`` keeps values the user set.
-    """
-    values = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": str(int(max_retries)), "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
-              "MLFLOW_HTTP_REQUEST_TIMEOUT": str(int(timeout_s)),
-              "MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT": "true"}  # else every run's end prints two URLs
-    for key, value in values.items():
+
+def tracking_env(tracking: dict) -> dict[str, str]:
+    """The HTTP bounds of a ``tracking`` config, for a process the study starts (the figure renderer): it
+    must have them before its first MLflow call, or it retries a dead server with MLflow's defaults (7
+    retries of 120 s each: a sweep whose server died exited after 998 s, waiting for its renderer)."""
+    return http_env(tracking.get("max_retries", HTTP_DEFAULTS["max_retries"]),
+                    tracking.get("timeout_s", HTTP_DEFAULTS["timeout_s"]))
+
+
+def http_settings(max_retries: int, timeout_s: int, override: bool = True) -> None:
+    """Bound MLflow's HTTP retries in this process (it reads these variables on every request; processes
+    started later inherit them).  ``override=False`` keeps values the user set."""
+    for key, value in http_env(max_retries, timeout_s).items():
         if override:
             os.environ[key] = value
         else:
