@@ -33,7 +33,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, datasets, render, shutdown, tracking
+from maglev.study import claims, credentials, datasets, render, shutdown, tracking
 from maglev.study.config import StudyConfigError, check, task_config
 
 log = logging.getLogger("maglev.study")
@@ -98,6 +98,22 @@ def sweep_jobs(config: DictConfig) -> list[list[str]] | None:
     return BasicSweeper.split_arguments(OverridesParser.create().parse_overrides(specs), None)[0]
 
 
+def check_job_dir(config: DictConfig, overrides: list) -> None:
+    """A job's output dir, ``<sweep dir>/<its overrides>`` (Hydra's ``override_dirname``), must stay inside
+    the sweep dir: an override value with ``..`` (``dataset.name=a/../../b``) would put it elsewhere."""
+    from hydra._internal.config_loader_impl import get_overrides_dirname
+
+    if OmegaConf.to_container(config.hydra.sweep, resolve=False).get("subdir") != "${hydra.job.override_dirname}":
+        return  # a subdir of the user's own making
+    how = config.hydra.job.config.override_dirname
+    sub = get_overrides_dirname(overrides, list(how.exclude_keys), how.item_sep, how.kv_sep)
+    top = Path(str(config.hydra.sweep.dir)).resolve()
+    if sub and top not in (top / sub).resolve().parents:
+        bad = [o.input_line for o in overrides if ".." in Path(o.input_line).parts or o.input_line.endswith("/..")]
+        raise StudyConfigError(f"{' '.join(bad) or sub}: the job's folder {sub!r} would lie outside the sweep dir "
+                               f"{top} (no '..' in values that name the job's folder)")
+
+
 def check_sweep(config: DictConfig) -> list[dict]:
     """Compose and :func:`~maglev.study.config.check` every job of the sweep; the first impossible one
     raises :class:`SweepRefused` naming the job and the key.  Returns the jobs' configs (plain, resolved).
@@ -130,9 +146,11 @@ def check_sweep(config: DictConfig) -> list[dict]:
                 OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
             job = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True)
             check(job)
+            check_job_dir(config, parsed)
             checked.append(job)
         except StudyConfigError as exc:
-            shown = " ".join(o for o in overrides if not o.lstrip("+~").startswith(("tracking", "hydra")))
+            shown = " ".join(o if len(o) <= 80 else f"{o[:60]}…" for o in overrides
+                             if not o.lstrip("+~").startswith(("tracking", "hydra")))
             raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
     return checked
 
@@ -149,13 +167,16 @@ class SweepCallback(Callback):
         try:
             self._start(config)
         except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
+            first = str(exc).splitlines()[0] if str(exc) else ""
             raise SweepNotStarted(f"maglev: the sweep could not start: {type(exc).__name__}: "
-                                  f"{str(exc).splitlines()[0] if str(exc) else ''}") from exc
+                                  f"{credentials.redact(first)}") from exc
 
     def _start(self, config: DictConfig) -> None:
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
+        credentials.redact_logs()  # Hydra logs every job's overrides, a URI's password included
         task = task_config(config)
         jobs = check_sweep(config)
+        task["tracking"]["uri"] = credentials.to_env(task["tracking"]["uri"])
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
         datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
         shutdown.mark_launcher()  # the processes started from here end with this one
@@ -180,7 +201,7 @@ class SweepCallback(Callback):
         found = client.search_runs([exp_id], filter_string=f"tags.sweep_id = '{sid}' and tags.kind = 'sweep'",
                                    order_by=["attributes.start_time DESC"], max_results=1)
         tags = {"kind": "sweep", "sweep": name, "sweep_id": sid, "sweep_dir": str(sweep_dir),
-                "hydra.overrides": " ".join(config.hydra.overrides.task)[:5000],
+                "hydra.overrides": credentials.redact(" ".join(config.hydra.overrides.task))[:5000],
                 "launcher": str(config.hydra.launcher.get("_target_", "")), **tracking.process_tags()}
         if found:
             self.parent, self.fresh = found[0].info.run_id, False
@@ -197,7 +218,7 @@ class SweepCallback(Callback):
             os.environ[tracking.SIZE_ENV] = str(size)
         atexit.register(self._abort)
         log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
-                 "new" if self.fresh else "resumed", task["tracking"]["uri"])
+                 "new" if self.fresh else "resumed", credentials.public(task["tracking"]["uri"]))
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
             self._log_lab(task)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import re
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -47,6 +48,30 @@ def task_config(config: DictConfig) -> dict:
 SAMPLES_PER_PARAMETER = 10
 
 
+# names that become file and folder names (the sweep dir, the report, artifact paths): no separator, no
+# leading dot (``..``), within every filesystem's name length with room for the report's suffix
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,99}")
+NAMED_KEYS = (("study", "name"), ("dataset", "name"))
+
+
+def check_names(cfg: dict) -> None:
+    """``study.name`` and ``dataset.name`` become paths (``multirun/<study.name>``, the report's file,
+    artifact names): letters, digits, ``. _ + -``, not starting with a dot, at most 100 characters."""
+    for section, key in NAMED_KEYS:
+        value = str(cfg[section][key])
+        if not NAME.fullmatch(value):
+            shown = value if len(value) <= 60 else f"{value[:40]}… ({len(value)} characters)"
+            raise StudyConfigError(f"{section}.{key}={shown!r}: a name must be 1-100 letters, digits or "
+                                   "'._+-', starting with a letter or digit (it becomes a file name)")
+
+
+def safe_name(text: str) -> str:
+    """``text`` as a plain file name: characters other than letters, digits and ``._+-`` become ``_``, no
+    leading dot, at most 100 characters (for names read back from a store, which anyone may have tagged)."""
+    name = re.sub(r"[^A-Za-z0-9._+-]", "_", text)[:100].lstrip(".")
+    return name or "_"
+
+
 def check(cfg: dict) -> None:
     """Semantic checks the schema cannot express; raise ``StudyConfigError`` naming the key.
 
@@ -57,6 +82,7 @@ def check(cfg: dict) -> None:
     from maglev.structures import PolySpec
 
     st, ds, study = cfg["structure"], cfg["dataset"], cfg["study"]
+    check_names(cfg)
     try:
         spec = PolySpec.from_orders(st["name"], orders_of(st))
     except ValueError as exc:

@@ -21,8 +21,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, render, tracking
-from maglev.study.config import check, config_hash, flatten, plain_config
+from maglev.study import claims, credentials, render, tracking
+from maglev.study.config import StudyConfigError, check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
 from maglev.validation import format_p
 
@@ -63,7 +63,7 @@ def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
     }
     if ctx:
         tags["hydra.output_dir"] = ctx["output_dir"]
-        tags["hydra.overrides"] = " ".join(ctx["overrides"])[:5000]
+        tags["hydra.overrides"] = credentials.redact(" ".join(ctx["overrides"]))[:5000]
     if parent:
         tags["mlflow.parentRunId"] = parent
     return tags
@@ -130,6 +130,27 @@ def model_description(cfg: dict, m: dict) -> str:
             "the resolved config in `config/config.yaml` (`maglev reproduce` recomputes it).\n")
 
 
+class RunRefused(SystemExit):
+    """A single run's config cannot describe a run: one line, exit status 1, no run (a ``SystemExit``:
+    Hydra prints any ``Exception`` of the task with its traceback)."""
+
+
+def checked_config(cfg: DictConfig, single: bool) -> dict:
+    """The job's plain config, checked (:func:`maglev.study.config.check`); for a ``single`` run a config
+    error is :class:`RunRefused` (a sweep checked every job before its start)."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        plain = plain_config(cfg)
+        check(plain)
+    except (StudyConfigError, OmegaConfBaseException, ValueError) as exc:
+        if not single:
+            raise
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise RunRefused(f"maglev: run refused before it started: {text}") from None
+    return plain
+
+
 def run(cfg: DictConfig) -> float | None:
     """The task of ``study.py``: returns the run's ``val_fit`` (None if it failed or was skipped)."""
     from maglev.study import shutdown
@@ -137,10 +158,10 @@ def run(cfg: DictConfig) -> float | None:
     shutdown.install()  # joblib and submitit workers never run study.py's own installation
     if shutdown.launcher() not in (None, os.getpid()):  # a worker of this machine's launcher: end with it
         shutdown.exit_with(shutdown.launcher())
-    plain = plain_config(cfg)
-    check(plain)
-    chash = config_hash(plain)
     ctx = hydra_context()
+    plain = checked_config(cfg, single=ctx.get("sweep_dir") is None)
+    plain["tracking"]["uri"] = credentials.to_env(plain["tracking"]["uri"])  # a server's user and password
+    chash = config_hash(plain)
     label = progress(ctx) + run_label(plain)
     client, exp_id = tracking.connect(plain["tracking"])
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
@@ -157,9 +178,9 @@ def run(cfg: DictConfig) -> float | None:
             return None
     else:
         run_id = create()
-    config_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
+    config_yaml = credentials.redact(OmegaConf.to_yaml(OmegaConf.create(plain)))
     try:
-        tracking.log_batch(client, run_id, params=flatten(plain))
+        tracking.log_batch(client, run_id, params={k: credentials.redact(v) for k, v in flatten(plain).items()})
         out = identify(plain)
         files = {"config/config.yaml": config_yaml,
                  "model/model.json": out.model.to_json(), "model/summary.txt": out.model.summary(),
@@ -167,7 +188,7 @@ def run(cfg: DictConfig) -> float | None:
         if ctx:
             hydra_dir = Path(ctx["output_dir"]) / ".hydra"
             for f in sorted(hydra_dir.glob("*.yaml")):
-                files[f"config/hydra/{f.name}"] = f
+                files[f"config/hydra/{f.name}"] = credentials.redact(f.read_text())
         tracking.log_files(client, run_id, files)
         tracking.log_batch(client, run_id, metrics=out.metrics)
         log_data_inputs(client, run_id, plain, out.prepared)

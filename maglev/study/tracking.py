@@ -35,6 +35,7 @@ from mlflow import MlflowClient  # noqa: E402
 from mlflow.entities import Metric, Param, RunTag  # noqa: E402
 
 from maglev.locks import exclusive  # noqa: E402
+from maglev.study.credentials import public, to_env  # noqa: E402
 from maglev.paths import project_root  # noqa: E402
 
 PARENT_FILE = "parent_run_id"
@@ -68,7 +69,7 @@ class TrackingUnreachable(SystemExit):
 
     def __init__(self, uri: str, why: str) -> None:
         global unreachable
-        unreachable = uri
+        unreachable = uri = public(uri)
         super().__init__(f"maglev: the MLflow tracking server {uri} cannot be reached ({why}); start it, "
                          "or fix tracking.uri")
 
@@ -133,7 +134,9 @@ def _short(exc: BaseException) -> str:
 
 def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None = None) -> MlflowClient:
     """A client of the store at ``uri``: a server is checked first, with bounded retries; a SQLite
-    store is created (migrated) under :func:`store_lock`, the only safe moment for it."""
+    store is created (migrated) under :func:`store_lock`, the only safe moment for it.  A user and password
+    in a server's URI go to MLflow's variables (:mod:`maglev.study.credentials`)."""
+    uri = to_env(uri)
     if is_http(uri):
         given = max_retries is not None
         http_settings(max_retries if given else HTTP_DEFAULTS["max_retries"],
@@ -403,6 +406,8 @@ def log_files(client: MlflowClient, run_id: str, files: dict) -> None:
     with tempfile.TemporaryDirectory(prefix="maglev-artifacts-") as tmp:
         for rel, content in files.items():
             path = Path(tmp) / rel
+            if Path(tmp).resolve() not in path.resolve().parents:  # an absolute name or '..' would write elsewhere
+                raise ValueError(f"log_files: artifact path {rel!r} leaves the run's artifact folder")
             path.parent.mkdir(parents=True, exist_ok=True)
             if isinstance(content, str):
                 path.write_text(content)
