@@ -34,7 +34,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import claims, credentials, datasets, render, shutdown, tracking
-from maglev.study.config import StudyConfigError, check, task_config
+from maglev.study.config import StudyConfigError, check, check_lab, task_config
 
 log = logging.getLogger("maglev.study")
 
@@ -176,6 +176,10 @@ class SweepCallback(Callback):
         credentials.redact_logs()  # Hydra logs every job's overrides, a URI's password included
         task = task_config(config)
         jobs = check_sweep(config)
+        try:
+            check_lab(task)
+        except StudyConfigError as exc:
+            raise SweepRefused(f"maglev: sweep refused before any run: {exc}") from None
         task["tracking"]["uri"] = credentials.to_env(task["tracking"]["uri"])
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
         datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
@@ -242,6 +246,7 @@ class SweepCallback(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         if self.parent is None:
             return
+        shutdown.raise_if_received()  # a signal whose exception was lost: the sweep did not end
         atexit.unregister(self._abort)
         render.drain()  # the last runs' figures: their runs are FINISHED once drawn
         kids = tracking.children(self.client, self.exp_id, self.parent)
@@ -268,24 +273,31 @@ class SweepCallback(Callback):
         """atexit: the sweep did not reach on_multirun_end (a job raised, Ctrl-C, SIGTERM)."""
         if self.parent is None:
             return
-        render.abandon(write=tracking.unreachable is None)
+        drawing = render.abandon(write=tracking.unreachable is None)
         why = signal.Signals(shutdown.received).name if shutdown.received else "stopped before its end"
         if tracking.unreachable is not None:  # nothing can be marked; the exit line says why
             claims.release_sweep(self.lock)
             return
         try:
-            if self.fresh and not tracking.children(self.client, self.exp_id, self.parent):
+            kids = tracking.children(self.client, self.exp_id, self.parent)
+            if self.fresh and not kids:
                 self.client.delete_run(self.parent)
                 log.warning("sweep stopped (%s) before any run: its parent run %s is deleted", why, self.parent)
             else:
                 self.client.set_terminated(self.parent, "KILLED")
                 left = self._reap_leftovers()
-                log.warning("sweep stopped (%s): parent run %s KILLED%s; the same command again runs what is "
-                            "not FINISHED", why, self.parent,
-                            f", {len(left)} run(s) left RUNNING marked KILLED" if left else "")
+                after = tracking.children(self.client, self.exp_id, self.parent)
+                killed = {r.info.run_id for r in after if r.info.status == "KILLED"}
+                finished = sum(r.info.status == "FINISHED" for r in after)
+                parts = [f"{len(set(drawing) & killed)} with figures not drawn" if drawing else "",
+                         f"{len(set(left) & killed)} left RUNNING by a process that is gone" if left else ""]
+                detail = f"{len(killed)} KILLED" + (f" ({', '.join(p for p in parts if p)})" if any(parts) else "")
+                log.warning("sweep stopped (%s): parent run %s KILLED; its runs: %d FINISHED, %s; the same command "
+                            "again runs what is not FINISHED", why, self.parent, finished, detail)
         except Exception:  # noqa: BLE001 — best effort at interpreter exit
             pass
         finally:
+            shutdown.reported = True
             claims.release_sweep(self.lock)
 
     def _reap_leftovers(self, timeout: float = 20.0) -> list[str]:
@@ -334,6 +346,7 @@ class RankingCallback(Callback):
         from maglev.study.report import rank_and_report
         from maglev.study.store import SweepError
 
+        shutdown.raise_if_received()
         HydraConfig.instance().set_config(config)
         render.drain()  # Hydra ends callbacks in reverse order: this one runs before SweepCallback's end
         task = task_config(config)

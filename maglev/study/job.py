@@ -156,6 +156,7 @@ def run(cfg: DictConfig) -> float | None:
     from maglev.study import shutdown
 
     shutdown.install()  # joblib and submitit workers never run study.py's own installation
+    shutdown.raise_if_received()
     if shutdown.launcher() not in (None, os.getpid()):  # a worker of this machine's launcher: end with it
         shutdown.exit_with(shutdown.launcher())
     ctx = hydra_context()
@@ -207,7 +208,10 @@ def run(cfg: DictConfig) -> float | None:
         killed = not isinstance(exc, Exception) or type(exc).__name__ == "UncompletedJobError"
         status = "KILLED" if killed else "FAILED"
         record_end(client, plain["tracking"], run_id, exc, status, config_yaml)
-        log.error("%s: run %s %s: %s: %s", label, run_id, status, type(exc).__name__, exc)
+        # a signal's KILLED runs are counted in the sweep's one line (callbacks.SweepCallback._abort)
+        level = logging.DEBUG if shutdown.received and ctx.get("sweep_dir") else logging.ERROR
+        log.log(level, "%s: run %s %s: %s: %s", label, run_id, status, type(exc).__name__, exc)
+        shutdown.reported = shutdown.reported or level == logging.ERROR
         if killed or plain["study"]["fail_on_error"]:
             raise
         return None

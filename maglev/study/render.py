@@ -58,6 +58,9 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the launcher stops it
     import mlflow  # noqa: F401
 
     import maglev.study.figures  # noqa: F401
@@ -138,14 +141,15 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
         _pool = None
     for run_id in left if write else []:
         try:
-            _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status)
+            _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status,
+                  quiet=True)
         except Exception as exc:  # noqa: BLE001 — the store may be gone too; mark the others
             log.error("run %s left RUNNING: %s: %s", run_id, type(exc).__name__, exc)
     _pending.clear()
     return left
 
 
-def _fail(uri: str, run_id: str, error: str, status: str = "FAILED") -> None:
+def _fail(uri: str, run_id: str, error: str, status: str = "FAILED", quiet: bool = False) -> None:
     from mlflow import MlflowClient
 
     from maglev.study import tracking
@@ -153,4 +157,4 @@ def _fail(uri: str, run_id: str, error: str, status: str = "FAILED") -> None:
     client = MlflowClient(tracking_uri=uri)
     tracking.log_batch(client, run_id, tags={"error": f"figures: {error}"[:4000]})
     client.set_terminated(run_id, status)
-    log.error("run %s %s: figures not drawn: %s", run_id, status, error)
+    log.log(logging.DEBUG if quiet else logging.ERROR, "run %s %s: figures not drawn: %s", run_id, status, error)

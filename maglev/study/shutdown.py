@@ -33,6 +33,7 @@ from __future__ import annotations
 import os
 import signal
 import socket
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -42,6 +43,7 @@ LAUNCHER_ENV = "MAGLEV_LAUNCHER_PID"  # the pid of the process that launched the
 _forward = False
 _watched: int | None = None  # the launcher whose end ends this process (exit_with)
 received: int | None = None  # the signal that is ending this process, once one has arrived
+reported = False  # whether the sweep's (or the single run's) line has said what the signal ended
 _held = 0  # how many deferred() blocks the main thread is in
 _pending: int | None = None  # a signal that arrived in one, raised when the outermost ends
 
@@ -111,12 +113,38 @@ def _on_sigterm(signum, frame) -> None:
     _raise(signum)
 
 
+def raise_if_received() -> None:
+    """Raise the exit of a signal that has arrived, at a safe point (a job's start, a sweep's end): the
+    handler's exception is lost when it lands in a garbage-collector callback or a ``__del__`` (Python
+    prints "Exception ignored" and goes on) — seen with SIGTERM to a sweep's process group, which then
+    ran its remaining jobs and exited 0."""
+    if received is not None and not _held:
+        _raise(received)
+
+
 def _on_sigint(signum, frame) -> None:
-    global _pending
+    global _pending, received
+    received = received or signum
     if _held:
         _pending = _pending or signum
         return
     _raise(signum)
+
+
+def _lost(unraisable) -> None:
+    """``sys.unraisablehook``: the exit a signal handler raised inside a garbage-collector or weakref callback
+    (SQLAlchemy's, seen with SIGTERM to a sweep's process group) is dropped there with an "Exception
+    ignored" traceback; deliver the signal again a moment later, outside that callback, without the print."""
+    ours = isinstance(unraisable.exc_value, KeyboardInterrupt) or (
+        isinstance(unraisable.exc_value, SystemExit) and received and unraisable.exc_value.code == 128 + received)
+    if not ours or received is None:
+        _previous_hook(unraisable)
+        return
+    signal.signal(received, _on_sigint if received == signal.SIGINT else _on_sigterm)
+    threading.Timer(0.05, os.kill, (os.getpid(), received)).start()
+
+
+_previous_hook = sys.unraisablehook
 
 
 def install(forward: bool = False) -> bool:
@@ -129,10 +157,19 @@ def install(forward: bool = False) -> bool:
     if threading.current_thread() is not threading.main_thread():
         return False
     _forward = _forward or forward
+    sys.unraisablehook = _lost
     signal.signal(signal.SIGTERM, _on_sigterm)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _on_sigint)
     return True
+
+
+def final_line() -> None:
+    """At exit of ``study.py``: the one line of a signal that ended it before a sweep or a run said so."""
+    if received is not None and not reported:
+        name = signal.Signals(received).name
+        print(f"maglev: stopped by {name}{' (Ctrl-C)' if received == signal.SIGINT else ''} before any run "
+              "was started", file=sys.stderr, flush=True)
 
 
 def mark_launcher() -> None:

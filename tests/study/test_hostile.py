@@ -117,3 +117,67 @@ def test_a_password_in_the_tracking_uri_is_nowhere_in_the_store_the_report_or_th
     assert secret not in report.read_text() and "alice" not in report.read_text()
     params = next(r for r in runs if r.data.tags.get("kind") == "model").data.params
     assert params["tracking.uri"] == mlflow_server  # the URI, without its userinfo
+
+
+# ---------------------------------------------------------------------------- configs that decide a failure
+CONFIG_CASES = [
+    (["dataset.seed=-1"], "dataset.seed must be in [0, 2**32), got -1"),
+    (["study.name=" + "s" * 300], "study.name='" + "s" * 40 + "… (300 characters)'"),
+    (["tracking.experiment="], "tracking.experiment is empty: name the MLflow experiment"),
+    (["+structure.oder=3"], "structure.oder: no such key (known: name, order, na, nb, nk, initial_condition)"),
+    (["+dataset.preprocess.detrnd=false"], "dataset.preprocess.detrnd: no such key"),
+    (["dataset.preprocess.split=0"], "dataset.preprocess.split must be in (0, 1), got 0.0"),
+    (["study.val_horizon=0"], "study.val_horizon must be >= 1, got 0"),
+    (["dataset.low=5", "dataset.high=1"], "low/high must satisfy 0 <= low <= high <= 10 A, got low=5.0, high=1.0"),
+]
+
+
+@pytest.mark.parametrize("multirun", [True, False], ids=["sweep", "single"])
+@pytest.mark.parametrize("overrides, needle", CONFIG_CASES)
+def test_a_config_that_decides_a_failure_is_refused_in_one_line_with_no_run(tmp_path, overrides, needle, multirun):
+    """Before: a FAILED run (seed), a RUNNING parent ("File name too long"), an AttributeError after creating
+    the store (empty experiment), an order-2 run with an unread key (+structure.oder), and on the single-run
+    path Hydra's full traceback."""
+    with pytest.raises(SystemExit) as refused:
+        launch(tmp_path, *SMALL, *overrides, multirun=multirun)
+    message = str(refused.value.code)
+    head = "maglev: sweep refused before any run: job " if multirun else "maglev: run refused before it started: "
+    assert message.startswith(head) and needle in message and "\n" not in message, message
+    assert not (tmp_path / "mlflow.db").exists() and not (tmp_path / "multirun").exists()
+
+
+def test_a_missing_real_file_is_refused_on_both_paths(tmp_path):
+    for multirun in (True, False):
+        with pytest.raises(SystemExit) as refused:
+            launch(tmp_path, "dataset=real_binary_signal_2", f"data_dir={tmp_path}/nowhere", *LEAN, multirun=multirun)
+        assert "dataset 'real_binary_signal_2': " in str(refused.value.code) and "not found" in str(refused.value.code)
+        assert "\n" not in str(refused.value.code)
+    assert not (tmp_path / "mlflow.db").exists()
+
+
+def test_a_sweep_whose_lab_staircase_is_missing_is_refused_before_any_run(tmp_path):
+    """Before: a warning, and the sweep went on to FINISHED without its lab steps."""
+    with pytest.raises(SystemExit) as refused:
+        launch(tmp_path, "dataset=binary_a025", *TINY, "tracking.log_figures=false", "study.true_plant=false",
+               "lab=real", f"data_dir={tmp_path}")
+    message = str(refused.value.code)
+    assert message.startswith("maglev: sweep refused before any run: lab.staircase_file: ") and "not found" in message
+    assert not (tmp_path / "mlflow.db").exists()
+
+
+@pytest.mark.parametrize("uri", ["notauri", "sqlite:///relative.db", "mlruns"])
+def test_a_tracking_uri_mlflow_cannot_use_is_refused_in_one_line(tmp_path, uri):
+    """Before: MLflow's file-store deprecation text (a bare word is a file store to MLflow)."""
+    import subprocess
+    import sys
+
+    from .harness import REPO, process_env
+
+    cmd = [sys.executable, str(REPO / "study.py"), "-m", *SMALL, f"tracking.uri={uri}",
+           f"hydra.sweep.dir={tmp_path}/multirun"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, timeout=120, env=process_env())
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 1 and len(lines) == 1, proc.stderr[-3000:]
+    assert lines[0].startswith("maglev: sweep refused before any run: job ") and f"tracking.uri='{uri}': expected" \
+        in lines[0], lines
+    assert written(tmp_path) == set()

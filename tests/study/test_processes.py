@@ -106,3 +106,37 @@ def test_kill_9_of_a_parallel_launcher_ends_its_workers_and_their_runs(tmp_path)
     assert models and [r.info.status for r in models if r.info.status == "RUNNING"] == [], \
         [(r.info.status, r.data.tags.get("pid")) for r in models]
     assert {r.info.status for r in models} <= {"FINISHED", "KILLED"}
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_ctrl_c_or_sigterm_to_the_process_group_prints_one_line_and_leaves_nothing_running(tmp_path, sig, code):
+    """A terminal's Ctrl-C and a whole-group SIGTERM reach the launcher and its figure renderer at once.
+    Before: Ctrl-C printed 40-132 lines (tracebacks of both processes); SIGTERM's exception was dropped in
+    a SQLAlchemy weakref callback ("Exception ignored"), and the sweep ran on to exit 0."""
+    from .harness import default_ctrl_c
+    from .test_concurrency import runs
+
+    log = tmp_path / "study.log"
+    cmd = [sys.executable, str(REPO / "study.py"), "-m", "dataset=binary_a025", "structure=arx,oe,armax",
+           "structure.order=2,3", *TINY, "study.true_plant=false", "lab.enabled=false", *store_overrides(tmp_path),
+           "~hydra.callbacks.maglev_rank"]
+    with open(log, "w") as out:
+        sweep = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=tmp_path, env=process_env(),
+                                 start_new_session=True, preexec_fn=default_ctrl_c)
+    try:
+        wait_for(lambda: "val_fit" in log.read_text() or sweep.poll() is not None, 240, "a first run", log)
+        before = len(log.read_text().splitlines())
+        below = descendants(sweep.pid)
+        os.killpg(sweep.pid, sig)
+        sweep.wait(timeout=60)
+    finally:
+        if sweep.poll() is None:
+            os.killpg(sweep.pid, signal.SIGKILL)
+    after = [line for line in log.read_text().splitlines()[before:]  # but a job that ended before the signal
+             if "] \t#" not in line and "val_fit" not in line]
+    assert sweep.returncode == code, log.read_text()[-3000:]
+    assert len(after) == 1 and f"sweep stopped ({sig.name}): parent run " in after[0], after
+    models = runs(tmp_path, "model")
+    assert not [r for r in runs(tmp_path) if r.info.status == "RUNNING"]
+    assert {r.info.status for r in models} <= {"FINISHED", "KILLED"}
+    wait_for(lambda: not alive(below), 10, f"the sweep's processes {alive(below)} ending", log)
