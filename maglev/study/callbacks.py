@@ -166,6 +166,8 @@ class SweepCallback(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         try:
             self._start(config)
+        except tracking.StoreProblem as exc:  # says what to do in its one line
+            raise SweepNotStarted(f"maglev: {credentials.redact(str(exc))}") from None
         except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
             first = str(exc).splitlines()[0] if str(exc) else ""
             raise SweepNotStarted(f"maglev: the sweep could not start: {type(exc).__name__}: "

@@ -164,7 +164,10 @@ def run(cfg: DictConfig) -> float | None:
     plain["tracking"]["uri"] = credentials.to_env(plain["tracking"]["uri"])  # a server's user and password
     chash = config_hash(plain)
     label = progress(ctx) + run_label(plain)
-    client, exp_id = tracking.connect(plain["tracking"])
+    try:
+        client, exp_id = tracking.connect(plain["tracking"])
+    except tracking.StoreProblem as exc:
+        raise RunRefused(f"maglev: {exc}") from None
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
 
     def create() -> str:

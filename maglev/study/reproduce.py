@@ -36,15 +36,18 @@ def within_rounding(a: float, b: float) -> bool:
 
 def open_client(uri: str):
     """A client on an existing store (a missing SQLite file is an error, never created)."""
-    from mlflow import MlflowClient
-
     from maglev.study.store import SweepError
-    from maglev.study.tracking import sqlite_path
+    from maglev.study.tracking import StoreProblem, TrackingUnreachable, new_client, sqlite_path
 
     db = sqlite_path(uri)
     if db is not None and not db.is_file():
         raise SweepError(f"no MLflow store at {db}; pass --tracking-uri")
-    return MlflowClient(tracking_uri=uri)
+    try:
+        return new_client(uri, write=False)  # reading a read-only store is fine
+    except TrackingUnreachable as exc:
+        raise SweepError(str(exc.code).removeprefix("maglev: ")) from None
+    except StoreProblem as exc:
+        raise SweepError(str(exc)) from None
 
 
 def model_run(client, run_id: str, uri: str):

@@ -56,7 +56,7 @@ def open_store(uri: str, experiment: str):
     is still creating is waited for, not migrated twice.
     """
     from maglev.study.credentials import public
-    from maglev.study.tracking import TrackingUnreachable, new_client, sqlite_path
+    from maglev.study.tracking import StoreProblem, TrackingUnreachable, new_client, sqlite_path
 
     db = sqlite_path(uri)
     if db is not None and not db.is_file():
@@ -68,6 +68,8 @@ def open_store(uri: str, experiment: str):
         client = new_client(uri)
     except TrackingUnreachable as exc:
         raise SweepError(str(exc.code).removeprefix("maglev: ")) from None
+    except StoreProblem as exc:
+        raise SweepError(str(exc)) from None
     try:
         exp = client.get_experiment_by_name(experiment)
         known = [e.name for e in client.search_experiments()] if exp is None else []

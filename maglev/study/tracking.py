@@ -132,9 +132,121 @@ def _short(exc: BaseException) -> str:
     return text.rsplit(": ", 1)[-1].strip(" )\"'")[:200] or type(exc).__name__
 
 
-def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None = None) -> MlflowClient:
+class StoreProblem(RuntimeError):
+    """A SQLite store that cannot be used — damaged, read-only, or not creatable — in one line saying what to do."""
+
+
+_checked: set[Path] = set()  # stores this process has checked (PRAGMA quick_check reads the whole file)
+
+
+def check_store(db: Path, write: bool = True) -> None:
+    """An existing SQLite store must pass ``PRAGMA quick_check`` (a truncated or overwritten file fails it;
+    MLflow itself noticed 8 KB of garbage inside nowhere) and, for ``write``, be writable with its folder
+    (SQLite writes a journal beside it).  Once per process and file; :class:`StoreProblem` otherwise."""
+    import sqlite3
+
+    if not db.is_file() or db in _checked:
+        return
+    aside = f"move it aside (mv {db} {db}.damaged) and restore a backup, or pass another tracking.uri"
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+        try:
+            found = [row[0] for row in con.execute("PRAGMA quick_check(3)")]
+            tables = {row[0] for row in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        finally:
+            con.close()
+    except sqlite3.DatabaseError as exc:
+        raise StoreProblem(f"the MLflow store {db} is damaged ({exc}); {aside}") from None
+    if found != ["ok"]:
+        said = "; ".join(line.strip() for text in found for line in text.splitlines() if not line.startswith("***"))
+        raise StoreProblem(f"the MLflow store {db} is damaged (PRAGMA quick_check: {said[:160]}); {aside}")
+    if tables and "runs" not in tables and not any(t.startswith("_alembic_tmp_") for t in tables):
+        raise StoreProblem(f"{db} is an SQLite file but not an MLflow store (no runs table); pass another "
+                           "tracking.uri")
+    if write and not (os.access(db, os.W_OK) and os.access(db.parent, os.W_OK)):
+        raise StoreProblem(f"the MLflow store {db} is read-only (the file or its folder {db.parent}); make both "
+                           "writable, or copy the store elsewhere and pass its tracking.uri")
+    _checked.add(db)
+
+
+def _first_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:200]}"
+
+
+def _forget_engine(uri: str) -> None:
+    """Drop MLflow's cached SQLAlchemy engine of ``uri`` (``SqlAlchemyStore._engine_map``, MLflow 3.x): its
+    pooled connections would go on reading a file that was replaced or moved aside."""
+    from mlflow.store.tracking.sqlalchemy_store import SqlAlchemyStore
+
+    engine = getattr(SqlAlchemyStore, "_engine_map", {}).pop(uri, None)
+    if engine is not None:
+        engine.dispose()
+
+
+def _create_store(db: Path) -> None:
+    """Create and migrate a new SQLite store atomically: in a file beside it, renamed into place once
+    complete.  A creation that fails (a full disk) leaves nothing; before, it left a half-migrated file
+    that every later launch failed on (``table _alembic_tmp_experiments already exists``)."""
+    import uuid
+
+    part = db.with_name(f"{db.name}.creating-{uuid.uuid4().hex[:12]}")  # MLflow caches a store per URI
+    try:
+        db.parent.mkdir(parents=True, exist_ok=True)
+        MlflowClient(tracking_uri=f"sqlite:///{part}")._tracking_client.store  # noqa: B018 — creates, migrates
+        _forget_engine(f"sqlite:///{part}")
+        os.replace(part, db)
+    except Exception as exc:
+        _forget_engine(f"sqlite:///{part}")
+        part.unlink(missing_ok=True)
+        raise StoreProblem(f"the MLflow store {db} could not be created ({_first_line(exc)}); nothing was left "
+                           "behind: free space or fix the folder's permissions, then launch again") from None
+
+
+def _half_made(db: Path) -> bool:
+    """A store whose creation was interrupted: MLflow's migration left an ``_alembic_tmp_*`` table and the
+    store has no runs (a store with runs is never moved aside)."""
+    import sqlite3
+
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    try:
+        tables = {row[0] for row in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        runs = con.execute("SELECT count(*) FROM runs").fetchone()[0] if "runs" in tables else 0
+    finally:
+        con.close()
+    return runs == 0 and any(t.startswith("_alembic_tmp_") for t in tables)
+
+
+def _sqlite_client(db: Path, uri: str, write: bool) -> MlflowClient:
+    """A client of a SQLite store (under the store lock): created atomically when missing, checked when it
+    exists, repaired when an interrupted creation left it half-made (and said so)."""
+    import logging
+
+    if not db.exists():
+        _create_store(db)
+    check_store(db, write)
+    try:
+        client = MlflowClient(tracking_uri=uri)
+        client._tracking_client.store  # noqa: B018 — opening the store migrates it: fail here, not later
+        return client
+    except Exception as exc:
+        if not _half_made(db):
+            raise StoreProblem(f"the MLflow store {db} cannot be opened ({_first_line(exc)}); move it aside "
+                               f"(mv {db} {db}.damaged) and restore a backup, or pass another tracking.uri") from None
+        aside = db.with_name(f"{db.name}.half-made-{time.strftime('%Y%m%d-%H%M%S')}")
+        _forget_engine(uri)
+        os.replace(db, aside)
+        logging.getLogger("maglev.study").warning(
+            "the MLflow store %s was left half-made by an interrupted creation (%s) and had no runs; moved it "
+            "to %s and created it anew", db, _first_line(exc), aside.name)
+        _create_store(db)
+        return MlflowClient(tracking_uri=uri)
+
+
+def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None = None,
+               write: bool = True) -> MlflowClient:
     """A client of the store at ``uri``: a server is checked first, with bounded retries; a SQLite
-    store is created (migrated) under :func:`store_lock`, the only safe moment for it.  A user and password
+    store is created (migrated) under :func:`store_lock`, the only safe moment for it, atomically, and an
+    existing one is checked first (``write``: it must be writable; :class:`StoreProblem`).  A user and password
     in a server's URI go to MLflow's variables (:mod:`maglev.study.credentials`)."""
     uri = to_env(uri)
     if is_http(uri):
@@ -143,8 +255,11 @@ def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None =
                       timeout_s if timeout_s is not None else HTTP_DEFAULTS["timeout_s"], override=given)
         check_reachable(uri, float(os.environ["MLFLOW_HTTP_REQUEST_TIMEOUT"]))
         return MlflowClient(tracking_uri=uri)
-    with store_lock(uri):
-        client = MlflowClient(tracking_uri=uri)
+    db = sqlite_path(uri)
+    if db is not None:
+        check_store(db, write)  # before the lock: a read-only folder cannot hold the lock file either
+    with store_lock(uri) if db is None or os.access(db.parent, os.W_OK) else contextlib.nullcontext():
+        client = MlflowClient(tracking_uri=uri) if db is None else _sqlite_client(db, uri, write)
     _defer_signals_in_sessions(client)
     return client
 

@@ -86,6 +86,14 @@ def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) 
         print(f"maglev ui: no MLflow store at {db}; run a sweep first (python study.py -m +sweep=lab) "
               "or pass --tracking-uri", file=sys.stderr)
         return 2
+    from maglev.study.tracking import StoreProblem, check_store
+
+    try:
+        if db is not None:
+            check_store(db, write=True)  # the UI writes its views into the store
+    except StoreProblem as exc:
+        print(f"maglev ui: {exc}", file=sys.stderr)
+        return 2
     base = f"http://{host}:{port}"
     env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
     proc = subprocess.Popen(server_command(uri, host, port), env=env, stdout=2)  # stdout: only the URL
