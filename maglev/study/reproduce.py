@@ -50,6 +50,30 @@ def open_client(uri: str):
         raise SweepError(str(exc)) from None
 
 
+RUN_ID_LENGTH = 32  # MLflow's run ids: 32 hex digits (the UI shows the first 8)
+
+
+def full_run_id(client, text: str, uri: str) -> str:
+    """The run id that ``text`` — a whole id or a unique prefix of one (at least 4 characters) — names;
+    a one-line :class:`SweepError` when none or several runs start with it."""
+    from maglev.study.credentials import public
+    from maglev.study.store import SweepError
+
+    if len(text) >= RUN_ID_LENGTH:
+        return text
+    if len(text) < 4 or any(c not in "0123456789abcdef" for c in text.lower()):
+        raise SweepError(f"{text!r} is not a run id or a prefix of one (at least 4 of its hex digits)")
+    experiments = [e.experiment_id for e in client.search_experiments()]
+    found = [r.info.run_id for r in client.search_runs(experiments, max_results=50000)
+             if r.info.run_id.startswith(text.lower())] if experiments else []
+    if not found:
+        raise SweepError(f"no run id starts with {text!r} in {public(uri)}")
+    if len(found) > 1:
+        raise SweepError(f"{len(found)} run ids start with {text!r} ({', '.join(sorted(found)[:3])}"
+                         f"{', …' if len(found) > 3 else ''}); give more of its digits")
+    return found[0]
+
+
 def model_run(client, run_id: str, uri: str):
     """The run ``run_id`` if it is a FINISHED model run; else a one-line :class:`SweepError` saying what it is."""
     from mlflow.exceptions import MlflowException
@@ -89,12 +113,13 @@ def recompute(cfg: dict, logged: dict[str, float]):
 
 
 def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool = False) -> tuple[bool, list]:
-    """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id``."""
+    """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id`` (or a unique prefix of it)."""
     from maglev.study import tracking
     from maglev.study.config import config_hash
     from maglev.study.store import run_config
 
     client = open_client(uri)
+    run_id = full_run_id(client, run_id, uri)
     run = model_run(client, run_id, uri)
     cfg = run_config(client, run_id)
     if data_dir:

@@ -25,6 +25,7 @@ import subprocess
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
 
@@ -314,18 +315,35 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
 EXPERIMENT_KIND = "custom_model_development"  # MLflow 3: "model training", not GenAI (mlflow.experimentKind)
 NOTE = "mlflow.note.content"  # a run's or experiment's description (Markdown; the table shows its start raw)
 SHARE_KEY = "maglev"  # the runs table's shared view: experiment tag mlflow.sharedViewState.<key>
+def _decimals(n: int) -> Callable[[float], float]:
+    return lambda x: round(x, n)
+
+
+def _significant(n: int) -> Callable[[float], float]:
+    return lambda x: float(f"{x:.{n}g}")
+
+
+def _minus_log10(x: float) -> float:
+    """−log10 p rounded to 0.01 (p = 0 shows as 300): the residual tests pass at p ≥ 0.01, i.e. at ≤ 2."""
+    return round(-math.log10(max(x, 1e-300)), 2) + 0.0
+
+
 # the metrics a user compares first, also logged under a common prefix so that they sort and filter together,
-# rounded to what the table can show (``key.<name>``: (the schema's metric, decimals); the schema's names and
-# full values stay the contract)
-KEY_METRICS = {"key.val_fit": ("val_fit", 2), "key.sim_fit": ("val_fit_sim", 2),
-               "key.naive_fit": ("val_fit_naive", 2), "key.white_p": ("whiteness_pvalue", 4),
-               "key.indep_p": ("independence_pvalue", 4), "key.n_params": ("n_params", 0)}
+# rounded to what the table can show (``key.<name>``: (the schema's metric, its rounding); the schema's names
+# and full values stay the contract).  p-values keep 3 significant digits (rounded to 1e-4 they showed 0
+# below 5e-5) and are also given as −log10 p.
+KEY_METRICS = {"key.val_fit": ("val_fit", _decimals(2)), "key.sim_fit": ("val_fit_sim", _decimals(2)),
+               "key.naive_fit": ("val_fit_naive", _decimals(2)),
+               "key.white_p": ("whiteness_pvalue", _significant(3)),
+               "key.indep_p": ("independence_pvalue", _significant(3)),
+               "key.white_log10p": ("whiteness_pvalue", _minus_log10),
+               "key.indep_log10p": ("independence_pvalue", _minus_log10), "key.n_params": ("n_params", _decimals(0))}
 UI_PARAMS = "workflowType=machine_learning"  # the UI's query parameter for model-training mode
 
 
 def key_metrics(metrics: dict) -> dict:
     """The ``key.*`` copies of a run's metrics (those it has), rounded."""
-    return {k: round(float(metrics[m]), digits) for k, (m, digits) in KEY_METRICS.items() if m in metrics}
+    return {k: rounded(float(metrics[m])) for k, (m, rounded) in KEY_METRICS.items() if m in metrics}
 
 
 def shared_view(search_filter: str | None = None) -> dict:

@@ -181,3 +181,12 @@ def test_a_tracking_uri_mlflow_cannot_use_is_refused_in_one_line(tmp_path, uri):
     assert lines[0].startswith("maglev: sweep refused before any run: job ") and f"tracking.uri='{uri}': expected" \
         in lines[0], lines
     assert written(tmp_path) == set()
+
+
+def test_a_tiny_p_value_is_readable_in_the_runs_table():
+    """Rounded to 1e-4, every p-value below 5e-5 showed as 0."""
+    from maglev.study.tracking import key_metrics
+
+    shown = key_metrics({"whiteness_pvalue": 3.24e-7, "independence_pvalue": 0.0})
+    assert shown == {"key.white_p": 3.24e-7, "key.white_log10p": 6.49, "key.indep_p": 0.0, "key.indep_log10p": 300.0}
+    assert key_metrics({"whiteness_pvalue": 0.01})["key.white_log10p"] == 2.0  # the pass threshold

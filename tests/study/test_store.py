@@ -142,3 +142,19 @@ def test_a_store_left_half_made_by_an_older_version_is_repaired_and_the_launch_s
         assert len(list(fs.glob("mlflow.db.half-made-*"))) == 1
         _, _, runs = all_runs(fs)
         assert sorted(r.info.status for r in runs if r.data.tags.get("kind") == "model") == ["FINISHED"] * 2
+
+
+def test_reproduce_takes_the_unique_prefix_the_ui_shows(tmp_path, migrated_db, capsys):
+    """The UI shows a run id's first 8 characters; before, only the whole id was accepted."""
+    from maglev.study.cli import main
+
+    run_id = a_store_with_runs(tmp_path, migrated_db)
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    capsys.readouterr()
+    assert main(["reproduce", run_id[:8], "--tracking-uri", uri]) == 0
+    assert "metrics identical" in capsys.readouterr().out
+    absent = next(p for p in ("0000", "ffff", "abcd") if not run_id.startswith(p))
+    for prefix, said in ((absent + "0000", f"no run id starts with '{absent}0000' in {uri}"),
+                         ("ab", "'ab' is not a run id or a prefix of one (at least 4 of its hex digits)")):
+        assert main(["reproduce", prefix, "--tracking-uri", uri]) == 2
+        assert capsys.readouterr().err.strip() == f"maglev reproduce: {said}"
