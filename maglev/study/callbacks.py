@@ -33,7 +33,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, credentials, datasets, render, shutdown, tracking
+from maglev.study import claims, credentials, datasets, environment, render, shutdown, tracking
 from maglev.study.config import StudyConfigError, check, check_lab, task_config
 
 log = logging.getLogger("maglev.study")
@@ -216,6 +216,7 @@ class SweepCallback(Callback):
         else:
             self.parent = client.create_run(exp_id, run_name=name, tags=tags).info.run_id
             self.fresh = True
+            self._log_environment()
         sweep_dir.mkdir(parents=True, exist_ok=True)
         (sweep_dir / tracking.PARENT_FILE).write_text(self.parent)
         os.environ[tracking.PARENT_ENV] = self.parent
@@ -227,6 +228,14 @@ class SweepCallback(Callback):
                  "new" if self.fresh else "resumed", credentials.public(task["tracking"]["uri"]))
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
             self._log_lab(task)
+
+    def _log_environment(self) -> None:
+        """``environment/requirements.txt``: what `pip install -r` needs to rebuild this environment. Like the
+        lab steps it informs, so a store that refuses it is a warning, not the end of the sweep."""
+        try:
+            self.client.log_text(self.parent, environment.requirements(environment.current()), environment.ARTIFACT)
+        except Exception as exc:
+            log.warning("environment not recorded: %s: %s", type(exc).__name__, exc)
 
     def _log_lab(self, task: dict) -> None:
         from maglev.study.lab import lab_steps

@@ -17,7 +17,8 @@ BJ falls to order 7 or 8, so a grid judged by either ends at its edge.  The simu
 FIT measures G alone, the part an order is for.  An order counts as needed when it
 gains more than ``ORDER_MARGIN`` = 1 point of mean simulation FIT: above order 4 the
 mean moves by at most 0.63 points from one order to the next, either way, while order
-3 to 4 gains 7.0 to 8.3 points for ARX, ARMAX and BJ (README, "Choosing the orders").
+3 to 4 gains 7.0 to 8.3 points for ARX, ARMAX and BJ (measured on an earlier plant:
+docs/decisions/0003-orders-by-simulation-fit.md).
 """
 
 from __future__ import annotations

@@ -210,11 +210,13 @@ def test_every_simulated_run_logs_the_bla_distance_the_naive_baseline_and_the_si
             m = r.data.metrics
             for key in ("g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "val_fit_naive", "val_fit_sim"):
                 assert math.isfinite(m[key]), (r.info.run_name, key)
-            assert 0 < m["g_bla_err"] < 5 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
-            # where the input explains the output every model is within 1.5 BLA norms; on uniform_narrow OE(5)
-            # follows the wander 2.9 norms away (test below)
+            assert 0 < m["g_bla_err"] < 5, r.info.run_name
+            # where the input explains the output every model is within 1.5 BLA norms and simulates at most 5 points
+            # above the BLA; on uniform_narrow OE(5) follows the wander (test below): which of its two minima the
+            # search ends in (loss 9.744e-5, simulation FIT 21.8 %; 9.879e-5, 16.2 %, 4.5 points above the BLA's 12.3)
+            # depended on the units before estimation normalised the data (y in mm instead of cm: 21.8 %)
             if ds in RANKED_DATASETS:
-                assert m["g_bla_err"] < 1.5, r.info.run_name
+                assert m["g_bla_err"] < 1.5 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
 
 
 @pytest.mark.parametrize("dataset", RANKED_DATASETS)
