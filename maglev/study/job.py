@@ -174,15 +174,22 @@ def run(cfg: DictConfig) -> float | None:
         tags = run_tags(plain, chash, ctx, parent)
         return client.create_run(exp_id, run_name=run_label(plain), tags=tags).info.run_id
 
-    if plain["study"]["skip_finished"]:
-        run_id, holder = claims.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
-        if holder is not None:
-            claims.reference(client, holder, parent, plain["study"]["name"])
-            log.info("%s", skip_message(label, holder, chash))
-            return None
-    else:
-        run_id = create()
     config_yaml = credentials.redact(OmegaConf.to_yaml(OmegaConf.create(plain)))
+    run_id, holder = None, None
+    try:
+        with shutdown.deferred():  # a signal while the run is created is raised once this job holds its id
+            if plain["study"]["skip_finished"]:
+                run_id, holder = claims.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
+            else:
+                run_id = create()
+    except BaseException as exc:
+        if run_id is not None:  # seen under load: a worker's run left RUNNING when its launcher was killed
+            record_end(client, plain["tracking"], run_id, exc, "KILLED", config_yaml)
+        raise
+    if holder is not None:
+        claims.reference(client, holder, parent, plain["study"]["name"])
+        log.info("%s", skip_message(label, holder, chash))
+        return None
     try:
         tracking.log_batch(client, run_id, params={k: credentials.redact(v) for k, v in flatten(plain).items()})
         out = identify(plain)

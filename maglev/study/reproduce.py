@@ -55,15 +55,13 @@ RUN_ID_LENGTH = 32  # MLflow's run ids: 32 hex digits (the UI shows the first 8)
 
 
 def full_run_id(client, text: str, uri: str) -> str:
-    """The run id that ``text`` — a whole id or a unique prefix of one (at least 4 characters) — names;
-    a one-line :class:`SweepError` when none or several runs start with it."""
+    """The run id that ``text`` — a whole id or a unique prefix of one (at least 4 hex digits) — names;
+    a one-line :class:`SweepError` when none or several runs start with a prefix."""
     from maglev.study.credentials import public
     from maglev.study.store import SweepError
 
-    if len(text) >= RUN_ID_LENGTH:
-        return text
-    if len(text) < 4 or any(c not in "0123456789abcdef" for c in text.lower()):
-        raise SweepError(f"{text!r} is not a run id or a prefix of one (at least 4 of its hex digits)")
+    if len(text) >= RUN_ID_LENGTH or len(text) < 4 or any(c not in "0123456789abcdef" for c in text.lower()):
+        return text  # not a prefix: looked up as it is (and said not to exist)
     experiments = [e.experiment_id for e in client.search_experiments()]
     found = [r.info.run_id for r in client.search_runs(experiments, max_results=50000)
              if r.info.run_id.startswith(text.lower())] if experiments else []
@@ -102,14 +100,14 @@ def model_run(client, run_id: str, uri: str):
 
 def recompute(cfg: dict, logged: dict[str, float]):
     """(identical?, rows of (metric, logged, recomputed), run output): ``cfg``'s run again
-    without MLflow, every logged metric but the timings compared exactly."""
+    without MLflow, every logged metric but the timings and the ``key.*`` display copies (their metrics
+    are compared; their rounding has changed since runs were logged) compared exactly."""
     from maglev.study import tracking
     from maglev.study.identify import TIMING_METRICS, identify
 
     out = identify(cfg)
-    recomputed = {**out.metrics, **tracking.key_metrics(out.metrics)}
-    rows = [(key, logged[key], tracking._finite(recomputed.get(key, math.nan)))
-            for key in sorted(logged) if key not in TIMING_METRICS]
+    rows = [(key, logged[key], tracking._finite(out.metrics.get(key, math.nan)))
+            for key in sorted(logged) if key not in TIMING_METRICS and key not in tracking.KEY_METRICS]
     return all(same(a, b) for _, a, b in rows) and bool(rows), rows, out
 
 

@@ -98,7 +98,7 @@ def test_kill_9_of_a_parallel_launcher_ends_its_workers_and_their_runs(tmp_path)
         assert sweep.poll() is None and below, log.read_text()[-3000:]
         sweep.kill()
         sweep.wait(timeout=10)
-        wait_for(lambda: not alive(below), 30, f"the workers {alive(below)} ending", log)
+        wait_for(lambda: not alive(below), 60, f"the workers {alive(below)} ending", log)
     finally:
         if alive(descendants(sweep.pid)):
             os.killpg(sweep.pid, signal.SIGKILL)

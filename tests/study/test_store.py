@@ -155,6 +155,6 @@ def test_reproduce_takes_the_unique_prefix_the_ui_shows(tmp_path, migrated_db, c
     assert "metrics identical" in capsys.readouterr().out
     absent = next(p for p in ("0000", "ffff", "abcd") if not run_id.startswith(p))
     for prefix, said in ((absent + "0000", f"no run id starts with '{absent}0000' in {uri}"),
-                         ("ab", "'ab' is not a run id or a prefix of one (at least 4 of its hex digits)")):
+                         ("ab", f"no run 'ab' in {uri}")):
         assert main(["reproduce", prefix, "--tracking-uri", uri]) == 2
         assert capsys.readouterr().err.strip() == f"maglev reproduce: {said}"
