@@ -227,7 +227,7 @@ class SweepCallback(Callback):
         log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
                  "new" if self.fresh else "resumed", credentials.public(task["tracking"]["uri"]))
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
-            self._log_lab(task)
+            self._log_lab(task, jobs)
 
     def _log_environment(self) -> None:
         """``environment/requirements.txt``: what `pip install -r` needs to rebuild this environment. Like the
@@ -237,11 +237,11 @@ class SweepCallback(Callback):
         except Exception as exc:
             log.warning("environment not recorded: %s: %s", type(exc).__name__, exc)
 
-    def _log_lab(self, task: dict) -> None:
+    def _log_lab(self, task: dict, jobs: list[dict]) -> None:
         from maglev.study.lab import lab_steps
 
         try:
-            metrics, figures, summary = lab_steps(task)
+            metrics, figures, summary = lab_steps(task, jobs)
         except Exception as exc:  # the lab steps are informative; the sweep goes on
             log.warning("lab steps failed: %s: %s", type(exc).__name__, exc)
             tracking.log_batch(self.client, self.parent, tags={"lab_error": f"{type(exc).__name__}: {exc}"})
@@ -249,6 +249,7 @@ class SweepCallback(Callback):
         from maglev.study.figures import png
 
         files = {f"lab/{k}": png(fig) for k, fig in figures.items()}
+        files["lab/decisions.json"] = summary.pop("decisions")  # schema: maglev.lab.decision
         files["lab/lab.json"] = summary
         tracking.log_files(self.client, self.parent, files)
         tracking.log_batch(self.client, self.parent, metrics=metrics, tags={"lab_logged": "true"})

@@ -46,8 +46,12 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
     assert parent.info.run_name == "tiny" and parent.info.status == "FINISHED"
     assert parent.data.metrics["runs_finished"] == 4
     assert {"lab/working_region.png", "lab/rise_time.png", "lab/output_spectrum.png", "lab/alpha.png",
-            "lab/lab.json"} <= artifact_paths(client, parent.info.run_id)
+            "lab/lab.json", "lab/decisions.json"} <= artifact_paths(client, parent.info.run_id)
     assert 0 < parent.data.metrics["lab.alpha_star"] <= 1
+    from maglev.lab.decision import read_decisions  # the schema the report reads: every decision, with its rule
+    decisions = read_decisions(json.loads(open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")).read()))
+    assert {"working_region", "records", "data_length", "alpha", "delay"} <= set(decisions)
+    assert decisions["records"].forced and all(d.rule and d.reasons for d in decisions.values())
     names = set()
     for r in kids:
         assert r.info.status == "FINISHED"

@@ -105,8 +105,13 @@ def ranking_run_for(ranking: Ranking) -> str:
 def rank_and_report(uri: str, experiment: str, parent: str | None, structure: str | None = None,
                     out: str | Path | None = None) -> tuple[str, Path]:
     """Rank, log the ranking run (reused if one ranked the same runs), write and log the report; print where."""
+    from maglev.study.decisions import with_orders
+
     sweep = load_sweep(uri, experiment, parent)
     ranking = compute(sweep, structure)
+    decisions = with_orders(artifact_json(sweep.client, sweep.parent_id, "lab/decisions.json"), ranking.table)
+    if decisions:  # the last decision of lab/decisions.json, made from the ranked runs
+        log_files(sweep.client, sweep.parent_id, {"lab/decisions.json": decisions})
     run_id = ranking_run_for(ranking)
     path = write_report(ranking, run_id, out)
     print(top_text(ranking))
