@@ -29,7 +29,13 @@ def main(cfg: DictConfig) -> float | None:
 
 
 if __name__ == "__main__":
+    import atexit
+
     from maglev.study import shutdown
 
     shutdown.install(forward=True)  # SIGTERM (Slurm, kill): runs KILLED, nothing left RUNNING
-    main()
+    atexit.register(shutdown.final_line)  # registered first, so it runs after the sweep's own end
+    try:
+        main()
+    except KeyboardInterrupt:  # Ctrl-C: the sweep's line says what it ended; no traceback
+        raise SystemExit(130) from None

@@ -33,8 +33,8 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, datasets, environment, render, tracking
-from maglev.study.config import StudyConfigError, check, task_config
+from maglev.study import claims, credentials, datasets, environment, render, shutdown, tracking
+from maglev.study.config import StudyConfigError, check, check_lab, task_config
 
 log = logging.getLogger("maglev.study")
 
@@ -98,6 +98,22 @@ def sweep_jobs(config: DictConfig) -> list[list[str]] | None:
     return BasicSweeper.split_arguments(OverridesParser.create().parse_overrides(specs), None)[0]
 
 
+def check_job_dir(config: DictConfig, overrides: list) -> None:
+    """A job's output dir, ``<sweep dir>/<its overrides>`` (Hydra's ``override_dirname``), must stay inside
+    the sweep dir: an override value with ``..`` (``dataset.name=a/../../b``) would put it elsewhere."""
+    from hydra._internal.config_loader_impl import get_overrides_dirname
+
+    if OmegaConf.to_container(config.hydra.sweep, resolve=False).get("subdir") != "${hydra.job.override_dirname}":
+        return  # a subdir of the user's own making
+    how = config.hydra.job.config.override_dirname
+    sub = get_overrides_dirname(overrides, list(how.exclude_keys), how.item_sep, how.kv_sep)
+    top = Path(str(config.hydra.sweep.dir)).resolve()
+    if sub and top not in (top / sub).resolve().parents:
+        bad = [o.input_line for o in overrides if ".." in Path(o.input_line).parts or o.input_line.endswith("/..")]
+        raise StudyConfigError(f"{' '.join(bad) or sub}: the job's folder {sub!r} would lie outside the sweep dir "
+                               f"{top} (no '..' in values that name the job's folder)")
+
+
 def check_sweep(config: DictConfig) -> list[dict]:
     """Compose and :func:`~maglev.study.config.check` every job of the sweep; the first impossible one
     raises :class:`SweepRefused` naming the job and the key.  Returns the jobs' configs (plain, resolved).
@@ -130,9 +146,11 @@ def check_sweep(config: DictConfig) -> list[dict]:
                 OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
             job = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True)
             check(job)
+            check_job_dir(config, parsed)
             checked.append(job)
         except StudyConfigError as exc:
-            shown = " ".join(o for o in overrides if not o.lstrip("+~").startswith(("tracking", "hydra")))
+            shown = " ".join(o if len(o) <= 80 else f"{o[:60]}…" for o in overrides
+                             if not o.lstrip("+~").startswith(("tracking", "hydra")))
             raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
     return checked
 
@@ -148,18 +166,29 @@ class SweepCallback(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         try:
             self._start(config)
+        except tracking.StoreProblem as exc:  # says what to do in its one line
+            raise SweepNotStarted(f"maglev: {credentials.redact(str(exc))}") from None
         except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
+            first = str(exc).splitlines()[0] if str(exc) else ""
             raise SweepNotStarted(f"maglev: the sweep could not start: {type(exc).__name__}: "
-                                  f"{str(exc).splitlines()[0] if str(exc) else ''}") from exc
+                                  f"{credentials.redact(first)}") from exc
 
     def _start(self, config: DictConfig) -> None:
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
+        credentials.redact_logs()  # Hydra logs every job's overrides, a URI's password included
         task = task_config(config)
         jobs = check_sweep(config)
+        try:
+            check_lab(task)
+        except StudyConfigError as exc:
+            raise SweepRefused(f"maglev: sweep refused before any run: {exc}") from None
+        task["tracking"]["uri"] = credentials.to_env(task["tracking"]["uri"])
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
         datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
+        shutdown.mark_launcher()  # the processes started from here end with this one
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
-            render.start()  # the renderer's process imports while the store and the lab steps are made
+            # its process imports while the store and the lab steps are made; MLflow's HTTP bounds first
+            render.start(tracking.tracking_env(task["tracking"]))
         client, exp_id = tracking.connect(task["tracking"])
         self.client, self.exp_id = client, exp_id
         sid = sweep_id(config, task)
@@ -178,7 +207,7 @@ class SweepCallback(Callback):
         found = client.search_runs([exp_id], filter_string=f"tags.sweep_id = '{sid}' and tags.kind = 'sweep'",
                                    order_by=["attributes.start_time DESC"], max_results=1)
         tags = {"kind": "sweep", "sweep": name, "sweep_id": sid, "sweep_dir": str(sweep_dir),
-                "hydra.overrides": " ".join(config.hydra.overrides.task)[:5000],
+                "hydra.overrides": credentials.redact(" ".join(config.hydra.overrides.task))[:5000],
                 "launcher": str(config.hydra.launcher.get("_target_", "")), **tracking.process_tags()}
         if found:
             self.parent, self.fresh = found[0].info.run_id, False
@@ -196,7 +225,7 @@ class SweepCallback(Callback):
             os.environ[tracking.SIZE_ENV] = str(size)
         atexit.register(self._abort)
         log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
-                 "new" if self.fresh else "resumed", task["tracking"]["uri"])
+                 "new" if self.fresh else "resumed", credentials.public(task["tracking"]["uri"]))
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
             self._log_lab(task, jobs)
 
@@ -229,6 +258,7 @@ class SweepCallback(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         if self.parent is None:
             return
+        shutdown.raise_if_received()  # a signal whose exception was lost: the sweep did not end
         atexit.unregister(self._abort)
         render.drain()  # the last runs' figures: their runs are FINISHED once drawn
         kids = tracking.children(self.client, self.exp_id, self.parent)
@@ -255,23 +285,31 @@ class SweepCallback(Callback):
         """atexit: the sweep did not reach on_multirun_end (a job raised, Ctrl-C, SIGTERM)."""
         if self.parent is None:
             return
-        from maglev.study import shutdown
-
-        render.abandon()
+        drawing = render.abandon(write=tracking.unreachable is None)
         why = signal.Signals(shutdown.received).name if shutdown.received else "stopped before its end"
+        if tracking.unreachable is not None:  # nothing can be marked; the exit line says why
+            claims.release_sweep(self.lock)
+            return
         try:
-            if self.fresh and not tracking.children(self.client, self.exp_id, self.parent):
+            kids = tracking.children(self.client, self.exp_id, self.parent)
+            if self.fresh and not kids:
                 self.client.delete_run(self.parent)
                 log.warning("sweep stopped (%s) before any run: its parent run %s is deleted", why, self.parent)
             else:
                 self.client.set_terminated(self.parent, "KILLED")
                 left = self._reap_leftovers()
-                log.warning("sweep stopped (%s): parent run %s KILLED%s; the same command again runs what is "
-                            "not FINISHED", why, self.parent,
-                            f", {len(left)} run(s) left RUNNING marked KILLED" if left else "")
+                after = tracking.children(self.client, self.exp_id, self.parent)
+                killed = {r.info.run_id for r in after if r.info.status == "KILLED"}
+                finished = sum(r.info.status == "FINISHED" for r in after)
+                parts = [f"{len(set(drawing) & killed)} with figures not drawn" if drawing else "",
+                         f"{len(set(left) & killed)} left RUNNING by a process that is gone" if left else ""]
+                detail = f"{len(killed)} KILLED" + (f" ({', '.join(p for p in parts if p)})" if any(parts) else "")
+                log.warning("sweep stopped (%s): parent run %s KILLED; its runs: %d FINISHED, %s; the same command "
+                            "again runs what is not FINISHED", why, self.parent, finished, detail)
         except Exception:  # noqa: BLE001 — best effort at interpreter exit
             pass
         finally:
+            shutdown.reported = True
             claims.release_sweep(self.lock)
 
     def _reap_leftovers(self, timeout: float = 20.0) -> list[str]:
@@ -323,6 +361,7 @@ class RankingCallback(Callback):
         from maglev.study.report import rank_and_report
         from maglev.study.store import SweepError
 
+        shutdown.raise_if_received()
         HydraConfig.instance().set_config(config)
         render.drain()  # Hydra ends callbacks in reverse order: this one runs before SweepCallback's end
         task = task_config(config)

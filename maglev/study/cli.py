@@ -37,8 +37,9 @@ def _store_args(p: argparse.ArgumentParser, sweep: bool = True) -> None:
 
 def _uri(a: argparse.Namespace) -> str:
     from maglev.paths import default_store_uri
+    from maglev.study.credentials import to_env
 
-    return a.tracking_uri or default_store_uri()
+    return to_env(a.tracking_uri or default_store_uri())  # a server's user and password: MLflow's variables
 
 
 def _rank(a: argparse.Namespace) -> int:

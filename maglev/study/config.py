@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import re
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -47,6 +48,75 @@ def task_config(config: DictConfig) -> dict:
 SAMPLES_PER_PARAMETER = 10
 
 
+# names that become file and folder names (the sweep dir, the report, artifact paths): no separator, no
+# leading dot (``..``), within every filesystem's name length with room for the report's suffix
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,99}")
+NAMED_KEYS = (("study", "name"), ("dataset", "name"))
+
+
+def check_names(cfg: dict) -> None:
+    """``study.name`` and ``dataset.name`` become paths (``multirun/<study.name>``, the report's file,
+    artifact names): letters, digits, ``. _ + -``, not starting with a dot, at most 100 characters."""
+    for section, key in NAMED_KEYS:
+        value = str(cfg[section][key])
+        if not NAME.fullmatch(value):
+            shown = value if len(value) <= 60 else f"{value[:40]}… ({len(value)} characters)"
+            raise StudyConfigError(f"{section}.{key}={shown!r}: a name must be 1-100 letters, digits or "
+                                   "'._+-', starting with a letter or digit (it becomes a file name)")
+
+
+def safe_name(text: str) -> str:
+    """``text`` as a plain file name: characters other than letters, digits and ``._+-`` become ``_``, no
+    leading dot, at most 100 characters (for names read back from a store, which anyone may have tagged)."""
+    name = re.sub(r"[^A-Za-z0-9._+-]", "_", text)[:100].lstrip(".")
+    return name or "_"
+
+
+# what MLflow can store runs in: SQLite (an absolute path), a tracking server, a database server
+TRACKING_URI = re.compile(r"sqlite:////.+|https?://[^/\s]+(/.*)?|(postgresql|mysql|mssql)(\+\w+)?://.+")
+
+
+def check_tracking(tracking: dict) -> None:
+    """``tracking.uri`` one MLflow stores runs in (a bare path would be MLflow's deprecated file store),
+    ``tracking.experiment`` a name, the HTTP bounds within MLflow's."""
+    from maglev.study.credentials import public
+
+    uri = str(tracking.get("uri", ""))
+    if not TRACKING_URI.fullmatch(uri):
+        raise StudyConfigError(f"tracking.uri={public(uri)!r}: expected sqlite:////ABSOLUTE/PATH/mlflow.db, "
+                               "http(s)://HOST:PORT (a tracking server) or a database URI (postgresql://…)")
+    name = str(tracking.get("experiment") or "")
+    if not name.strip():
+        raise StudyConfigError("tracking.experiment is empty: name the MLflow experiment (default: maglev)")
+    if tracking.get("artifact_location") and not NAME.fullmatch(name):  # it names the artifact folder too
+        raise StudyConfigError(f"tracking.experiment={name!r}: with a local artifact_location it names a folder: "
+                               "1-100 letters, digits or '._+-', starting with a letter or digit")
+    if not 0 <= tracking.get("max_retries", 0) <= 10:  # MLflow refuses more than 10
+        raise StudyConfigError(f"tracking.max_retries must be in [0, 10], got {tracking['max_retries']}")
+    if tracking.get("timeout_s", 1) < 1:
+        raise StudyConfigError(f"tracking.timeout_s must be >= 1 (whole seconds), got {tracking['timeout_s']}")
+
+
+def check_keys(cfg: dict) -> None:
+    """No key the schema does not have: ``+structure.oder=3`` (Hydra's own hint for a typo) adds one that
+    composition accepts and nothing reads."""
+    from dataclasses import fields
+
+    from maglev.study import schema
+
+    sections = {"": schema.Config, "dataset": schema.DATASET_SCHEMAS.get(cfg["dataset"].get("source")),
+                "dataset.preprocess": schema.PreprocessCfg, "structure": schema.register_structure(cfg["structure"]["name"]),
+                "tracking": schema.TrackingCfg, "lab": schema.LabCfg, "study": schema.StudyCfg}
+    for path, cls in sections.items():
+        node = cfg
+        for key in filter(None, path.split(".")):
+            node = node.get(key) or {}
+        unknown = sorted(set(node) - {f.name for f in fields(cls)}) if cls is not None else []
+        if unknown:
+            where = f"{path}." if path else ""
+            raise StudyConfigError(f"{where}{unknown[0]}: no such key (known: {', '.join(f.name for f in fields(cls))})")
+
+
 def check(cfg: dict) -> None:
     """Semantic checks the schema cannot express; raise ``StudyConfigError`` naming the key.
 
@@ -57,6 +127,12 @@ def check(cfg: dict) -> None:
     from maglev.structures import PolySpec
 
     st, ds, study = cfg["structure"], cfg["dataset"], cfg["study"]
+    check_keys(cfg)
+    check_names(cfg)
+    if "tracking" in cfg:
+        check_tracking(cfg["tracking"])
+    if ds["source"] == "sim" and not 0 <= ds["seed"] < 2**32:
+        raise StudyConfigError(f"dataset.seed must be in [0, 2**32), got {ds['seed']}")
     try:
         spec = PolySpec.from_orders(st["name"], orders_of(st))
     except ValueError as exc:
@@ -73,16 +149,6 @@ def check(cfg: dict) -> None:
         raise StudyConfigError(f"study.val_horizon must be >= 1, got {study['val_horizon']}")
     if study["resid_lags"] < 1:
         raise StudyConfigError(f"study.resid_lags must be >= 1, got {study['resid_lags']}")
-    tracking = cfg.get("tracking", {})
-    if not 0 <= tracking.get("max_retries", 0) <= 10:  # MLflow refuses more than 10
-        raise StudyConfigError(f"tracking.max_retries must be in [0, 10], got {tracking['max_retries']}")
-    if tracking.get("timeout_s", 1) < 1:
-        raise StudyConfigError(f"tracking.timeout_s must be >= 1 (whole seconds), got {tracking['timeout_s']}")
-    scheme, sep, rest = str(tracking.get("uri", "")).partition("://")
-    if sep and "@" in rest.split("/", 1)[0]:  # every run logs tracking.uri as a param: no password in it
-        shown = f"{scheme}://…@{rest.split('/', 1)[0].rsplit('@', 1)[1]}"
-        raise StudyConfigError(f"tracking.uri must not hold credentials ({shown}): set MLFLOW_TRACKING_USERNAME "
-                               "and MLFLOW_TRACKING_PASSWORD instead")
     check_lengths(ds, spec, study, raw_length(ds, cfg["data_dir"]))
 
 
@@ -128,6 +194,19 @@ def parts(n_raw: int, trim: int, decimate: int, split: float) -> tuple[int, int]
     n = max(-(-(n_raw - trim) // decimate), 0)
     n_est = int(round(n * split))
     return n_est, n - n_est
+
+
+def check_lab(cfg: dict) -> None:
+    """A sweep's lab steps read ``lab.staircase_file`` (relative to ``data_dir``): it must exist."""
+    from pathlib import Path
+
+    lab = cfg.get("lab") or {}
+    if lab.get("enabled") and lab.get("staircase_file"):
+        path = Path(lab["staircase_file"])
+        path = path if path.is_absolute() else Path(cfg["data_dir"]) / path
+        if not path.is_file():
+            raise StudyConfigError(f"lab.staircase_file: {path} not found (data_dir={cfg['data_dir']!r}); set "
+                                   "$MAGLEV_REFDATA or pass data_dir=/path/to/refdata, or lab=sim")
 
 
 def check_lengths(ds: dict, spec, study: dict, n_raw: int) -> None:

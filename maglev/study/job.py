@@ -21,8 +21,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, render, tracking
-from maglev.study.config import check, config_hash, flatten, plain_config
+from maglev.study import claims, credentials, render, tracking
+from maglev.study.config import StudyConfigError, check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
 from maglev.validation import format_p
 
@@ -63,7 +63,7 @@ def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
     }
     if ctx:
         tags["hydra.output_dir"] = ctx["output_dir"]
-        tags["hydra.overrides"] = " ".join(ctx["overrides"])[:5000]
+        tags["hydra.overrides"] = credentials.redact(" ".join(ctx["overrides"]))[:5000]
     if parent:
         tags["mlflow.parentRunId"] = parent
     return tags
@@ -130,34 +130,68 @@ def model_description(cfg: dict, m: dict) -> str:
             "the resolved config in `config/config.yaml` (`maglev reproduce` recomputes it).\n")
 
 
+class RunRefused(SystemExit):
+    """A single run's config cannot describe a run: one line, exit status 1, no run (a ``SystemExit``:
+    Hydra prints any ``Exception`` of the task with its traceback)."""
+
+
+def checked_config(cfg: DictConfig, single: bool) -> dict:
+    """The job's plain config, checked (:func:`maglev.study.config.check`); for a ``single`` run a config
+    error is :class:`RunRefused` (a sweep checked every job before its start)."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        plain = plain_config(cfg)
+        check(plain)
+    except (StudyConfigError, OmegaConfBaseException, ValueError) as exc:
+        if not single:
+            raise
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise RunRefused(f"maglev: run refused before it started: {text}") from None
+    return plain
+
+
 def run(cfg: DictConfig) -> float | None:
     """The task of ``study.py``: returns the run's ``val_fit`` (None if it failed or was skipped)."""
     from maglev.study import shutdown
 
     shutdown.install()  # joblib and submitit workers never run study.py's own installation
-    plain = plain_config(cfg)
-    check(plain)
-    chash = config_hash(plain)
+    shutdown.raise_if_received()
+    if shutdown.launcher() not in (None, os.getpid()):  # a worker of this machine's launcher: end with it
+        shutdown.exit_with(shutdown.launcher())
     ctx = hydra_context()
+    plain = checked_config(cfg, single=ctx.get("sweep_dir") is None)
+    plain["tracking"]["uri"] = credentials.to_env(plain["tracking"]["uri"])  # a server's user and password
+    chash = config_hash(plain)
     label = progress(ctx) + run_label(plain)
-    client, exp_id = tracking.connect(plain["tracking"])
+    try:
+        client, exp_id = tracking.connect(plain["tracking"])
+    except tracking.StoreProblem as exc:
+        raise RunRefused(f"maglev: {exc}") from None
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
 
     def create() -> str:
         tags = run_tags(plain, chash, ctx, parent)
         return client.create_run(exp_id, run_name=run_label(plain), tags=tags).info.run_id
 
-    if plain["study"]["skip_finished"]:
-        run_id, holder = claims.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
-        if holder is not None:
-            claims.reference(client, holder, parent, plain["study"]["name"])
-            log.info("%s", skip_message(label, holder, chash))
-            return None
-    else:
-        run_id = create()
-    config_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
+    config_yaml = credentials.redact(OmegaConf.to_yaml(OmegaConf.create(plain)))
+    run_id, holder = None, None
     try:
-        tracking.log_batch(client, run_id, params=flatten(plain))
+        with shutdown.deferred():  # a signal while the run is created is raised once this job holds its id
+            if plain["study"]["skip_finished"]:
+                run_id, holder = claims.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
+            else:
+                run_id = create()
+    except BaseException as exc:
+        if run_id is not None:  # seen under load: a worker's run left RUNNING when its launcher was killed
+            record_end(client, plain["tracking"], run_id, exc, "KILLED", config_yaml)
+        raise
+    if holder is not None:
+        claims.reference(client, holder, parent, plain["study"]["name"])
+        log.info("%s", skip_message(label, holder, chash))
+        return None
+    try:
+        tracking.log_batch(client, run_id, params={k: credentials.redact(v) for k, v in flatten(plain).items()})
         out = identify(plain)
         files = {"config/config.yaml": config_yaml,
                  "model/model.json": out.model.to_json(), "model/summary.txt": out.model.summary(),
@@ -165,7 +199,7 @@ def run(cfg: DictConfig) -> float | None:
         if ctx:
             hydra_dir = Path(ctx["output_dir"]) / ".hydra"
             for f in sorted(hydra_dir.glob("*.yaml")):
-                files[f"config/hydra/{f.name}"] = f
+                files[f"config/hydra/{f.name}"] = credentials.redact(f.read_text())
         tracking.log_files(client, run_id, files)
         tracking.log_batch(client, run_id, metrics=out.metrics)
         log_data_inputs(client, run_id, plain, out.prepared)
@@ -184,7 +218,10 @@ def run(cfg: DictConfig) -> float | None:
         killed = not isinstance(exc, Exception) or type(exc).__name__ == "UncompletedJobError"
         status = "KILLED" if killed else "FAILED"
         record_end(client, plain["tracking"], run_id, exc, status, config_yaml)
-        log.error("%s: run %s %s: %s: %s", label, run_id, status, type(exc).__name__, exc)
+        # a signal's KILLED runs are counted in the sweep's one line (callbacks.SweepCallback._abort)
+        level = logging.DEBUG if shutdown.received and ctx.get("sweep_dir") else logging.ERROR
+        log.log(level, "%s: run %s %s: %s: %s", label, run_id, status, type(exc).__name__, exc)
+        shutdown.reported = shutdown.reported or level == logging.ERROR
         if killed or plain["study"]["fail_on_error"]:
             raise
         return None

@@ -46,24 +46,39 @@ def draw_and_finish(uri: str, run_id: str, inputs) -> None:
     client.set_terminated(run_id, "FINISHED")
 
 
-def _worker_start() -> None:
-    """In each renderer process: import what drawing needs, before the first run's figures arrive."""
+def _worker_start(env: dict[str, str], launcher: int) -> None:
+    """In each renderer process, before anything else: MLflow's HTTP bounds (``env``) and an end with the
+    launcher; then import what drawing needs, before the first run's figures arrive."""
+    import os
+
+    os.environ.update(env)
+    from maglev.study.shutdown import exit_with
+
+    exit_with(launcher)
     import matplotlib
 
     matplotlib.use("Agg")
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the launcher stops it
     import mlflow  # noqa: F401
 
     import maglev.study.figures  # noqa: F401
     import maglev.study.tracking  # noqa: F401
 
 
-def start() -> None:
+def start(env: dict[str, str] | None = None) -> None:
     """Start the renderer now (a sweep's start: its processes import while the store and the lab steps are
-    made), not at the first run's figures."""
+    made), not at the first run's figures.  ``env``: MLflow's HTTP bounds for it (default: this process's
+    ``MLFLOW_HTTP_REQUEST_*`` variables)."""
+    import os
+
     global _pool
+    if env is None:
+        env = {k: v for k, v in os.environ.items() if k.startswith("MLFLOW_HTTP_REQUEST_")}
     if _pool is None:
         _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"),
-                                    initializer=_worker_start)
+                                    initializer=_worker_start, initargs=(env, os.getpid()))
         for _ in range(WORKERS):  # a spawned pool starts its processes on demand
             _pool.submit(int)
 
@@ -110,25 +125,31 @@ def drain() -> dict[str, str]:
     return failed
 
 
-def abandon(status: str = "KILLED") -> list[str]:
-    """Stop the renderer without waiting (the sweep is dying): runs whose figures were not drawn get
-    ``status`` — those still queued, and those whose renderer died (SIGTERM reaches it too)."""
+def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
+    """Stop the renderer without waiting (the sweep is dying; its process is terminated, or the
+    interpreter's exit would wait for the figures in flight): runs whose figures were not drawn get
+    ``status`` — those still queued, in flight, and those whose renderer died (SIGTERM reaches it too).
+    ``write=False``: mark nothing (the store cannot be reached)."""
     global _pool
     left = [run_id for run_id, (_, fut, _) in _pending.items()
             if not (fut.done() and not fut.cancelled() and fut.exception() is None)]
     if _pool is not None:
+        processes = list((_pool._processes or {}).values())
         _pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
         _pool = None
-    for run_id in left:
+    for run_id in left if write else []:
         try:
-            _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status)
+            _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status,
+                  quiet=True)
         except Exception as exc:  # noqa: BLE001 — the store may be gone too; mark the others
             log.error("run %s left RUNNING: %s: %s", run_id, type(exc).__name__, exc)
     _pending.clear()
     return left
 
 
-def _fail(uri: str, run_id: str, error: str, status: str = "FAILED") -> None:
+def _fail(uri: str, run_id: str, error: str, status: str = "FAILED", quiet: bool = False) -> None:
     from mlflow import MlflowClient
 
     from maglev.study import tracking
@@ -136,4 +157,4 @@ def _fail(uri: str, run_id: str, error: str, status: str = "FAILED") -> None:
     client = MlflowClient(tracking_uri=uri)
     tracking.log_batch(client, run_id, tags={"error": f"figures: {error}"[:4000]})
     client.set_terminated(run_id, status)
-    log.error("run %s %s: figures not drawn: %s", run_id, status, error)
+    log.log(logging.DEBUG if quiet else logging.ERROR, "run %s %s: figures not drawn: %s", run_id, status, error)

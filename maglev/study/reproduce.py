@@ -37,15 +37,40 @@ def within_rounding(a: float, b: float) -> bool:
 
 def open_client(uri: str):
     """A client on an existing store (a missing SQLite file is an error, never created)."""
-    from mlflow import MlflowClient
-
     from maglev.study.store import SweepError
-    from maglev.study.tracking import sqlite_path
+    from maglev.study.tracking import StoreProblem, TrackingUnreachable, new_client, sqlite_path
 
     db = sqlite_path(uri)
     if db is not None and not db.is_file():
         raise SweepError(f"no MLflow store at {db}; pass --tracking-uri")
-    return MlflowClient(tracking_uri=uri)
+    try:
+        return new_client(uri, write=False)  # reading a read-only store is fine
+    except TrackingUnreachable as exc:
+        raise SweepError(str(exc.code).removeprefix("maglev: ")) from None
+    except StoreProblem as exc:
+        raise SweepError(str(exc)) from None
+
+
+RUN_ID_LENGTH = 32  # MLflow's run ids: 32 hex digits (the UI shows the first 8)
+
+
+def full_run_id(client, text: str, uri: str) -> str:
+    """The run id that ``text`` — a whole id or a unique prefix of one (at least 4 hex digits) — names;
+    a one-line :class:`SweepError` when none or several runs start with a prefix."""
+    from maglev.study.credentials import public
+    from maglev.study.store import SweepError
+
+    if len(text) >= RUN_ID_LENGTH or len(text) < 4 or any(c not in "0123456789abcdef" for c in text.lower()):
+        return text  # not a prefix: looked up as it is (and said not to exist)
+    experiments = [e.experiment_id for e in client.search_experiments()]
+    found = [r.info.run_id for r in client.search_runs(experiments, max_results=50000)
+             if r.info.run_id.startswith(text.lower())] if experiments else []
+    if not found:
+        raise SweepError(f"no run id starts with {text!r} in {public(uri)}")
+    if len(found) > 1:
+        raise SweepError(f"{len(found)} run ids start with {text!r} ({', '.join(sorted(found)[:3])}"
+                         f"{', …' if len(found) > 3 else ''}); give more of its digits")
+    return found[0]
 
 
 def model_run(client, run_id: str, uri: str):
@@ -75,14 +100,14 @@ def model_run(client, run_id: str, uri: str):
 
 def recompute(cfg: dict, logged: dict[str, float]):
     """(identical?, rows of (metric, logged, recomputed), run output): ``cfg``'s run again
-    without MLflow, every logged metric but the timings compared exactly."""
+    without MLflow, every logged metric but the timings and the ``key.*`` display copies (their metrics
+    are compared; their rounding has changed since runs were logged) compared exactly."""
     from maglev.study import tracking
     from maglev.study.identify import TIMING_METRICS, identify
 
     out = identify(cfg)
-    recomputed = {**out.metrics, **tracking.key_metrics(out.metrics)}
-    rows = [(key, logged[key], tracking._finite(recomputed.get(key, math.nan)))
-            for key in sorted(logged) if key not in TIMING_METRICS]
+    rows = [(key, logged[key], tracking._finite(out.metrics.get(key, math.nan)))
+            for key in sorted(logged) if key not in TIMING_METRICS and key not in tracking.KEY_METRICS]
     return all(same(a, b) for _, a, b in rows) and bool(rows), rows, out
 
 
@@ -105,12 +130,13 @@ def _compare_environment(client, run) -> None:
 
 
 def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool = False) -> tuple[bool, list]:
-    """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id``."""
+    """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id`` (or a unique prefix of it)."""
     from maglev.study import tracking
     from maglev.study.config import config_hash
     from maglev.study.store import run_config
 
     client = open_client(uri)
+    run_id = full_run_id(client, run_id, uri)
     run = model_run(client, run_id, uri)
     cfg = run_config(client, run_id)
     if data_dir:

@@ -21,18 +21,29 @@ an exception raised in SQLite's commit leaves the process holding the database's
 lock, and every later write of the cleanup then waits SQLite's 20 s busy timeout and fails
 (measured: the parent and the run in flight left RUNNING, exit 1 after 100 s instead of
 143 at once).  Ctrl-C's ``KeyboardInterrupt`` waits the same way.
+
+The processes a sweep starts on this machine — the figure renderer, joblib's workers,
+submitit's local job processes — end with their launcher, kill -9 included
+(:func:`exit_with`): a worker left behind held 260-390 MB for minutes (the renderer)
+or more than 25 minutes (a joblib worker).
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import socket
+import sys
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+LAUNCHER_ENV = "MAGLEV_LAUNCHER_PID"  # the pid of the process that launched the sweep, for its workers
 _forward = False
+_watched: int | None = None  # the launcher whose end ends this process (exit_with)
 received: int | None = None  # the signal that is ending this process, once one has arrived
+reported = False  # whether the sweep's (or the single run's) line has said what the signal ended
 _held = 0  # how many deferred() blocks the main thread is in
 _pending: int | None = None  # a signal that arrived in one, raised when the outermost ends
 
@@ -102,12 +113,38 @@ def _on_sigterm(signum, frame) -> None:
     _raise(signum)
 
 
+def raise_if_received() -> None:
+    """Raise the exit of a signal that has arrived, at a safe point (a job's start, a sweep's end): the
+    handler's exception is lost when it lands in a garbage-collector callback or a ``__del__`` (Python
+    prints "Exception ignored" and goes on) — seen with SIGTERM to a sweep's process group, which then
+    ran its remaining jobs and exited 0."""
+    if received is not None and not _held:
+        _raise(received)
+
+
 def _on_sigint(signum, frame) -> None:
-    global _pending
+    global _pending, received
+    received = received or signum
     if _held:
         _pending = _pending or signum
         return
     _raise(signum)
+
+
+def _lost(unraisable) -> None:
+    """``sys.unraisablehook``: the exit a signal handler raised inside a garbage-collector or weakref callback
+    (SQLAlchemy's, seen with SIGTERM to a sweep's process group) is dropped there with an "Exception
+    ignored" traceback; deliver the signal again a moment later, outside that callback, without the print."""
+    ours = isinstance(unraisable.exc_value, KeyboardInterrupt) or (
+        isinstance(unraisable.exc_value, SystemExit) and received and unraisable.exc_value.code == 128 + received)
+    if not ours or received is None:
+        _previous_hook(unraisable)
+        return
+    signal.signal(received, _on_sigint if received == signal.SIGINT else _on_sigterm)
+    threading.Timer(0.05, os.kill, (os.getpid(), received)).start()
+
+
+_previous_hook = sys.unraisablehook
 
 
 def install(forward: bool = False) -> bool:
@@ -120,7 +157,73 @@ def install(forward: bool = False) -> bool:
     if threading.current_thread() is not threading.main_thread():
         return False
     _forward = _forward or forward
+    sys.unraisablehook = _lost
     signal.signal(signal.SIGTERM, _on_sigterm)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _on_sigint)
+    return True
+
+
+def final_line() -> None:
+    """At exit of ``study.py``: the one line of a signal that ended it before a sweep or a run said so."""
+    if received is not None and not reported:
+        name = signal.Signals(received).name
+        print(f"maglev: stopped by {name}{' (Ctrl-C)' if received == signal.SIGINT else ''} before any run "
+              "was started", file=sys.stderr, flush=True)
+
+
+def mark_launcher() -> None:
+    """Record this process as the sweep's launcher (its workers, started later, inherit the variable)."""
+    os.environ[LAUNCHER_ENV] = f"{socket.gethostname()}:{os.getpid()}"
+
+
+def launcher() -> int | None:
+    """The pid of the process that launched the running sweep on this machine (None outside a sweep, or
+    when the launcher is on another machine: a Slurm job inherits the variable)."""
+    host, _, pid = os.environ.get(LAUNCHER_ENV, "").rpartition(":")
+    return int(pid) if pid.isdigit() and host == socket.gethostname() else None
+
+
+def ended(pid: int) -> bool:
+    """True when process ``pid`` is gone or a zombie (killed, not yet reaped by its parent)."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
+    except FileNotFoundError:
+        return True
+    except (OSError, IndexError):  # no /proc
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        except PermissionError:
+            pass
+        return False
+
+
+def exit_with(pid: int, grace: float = 20.0, poll: float = 0.5) -> bool:
+    """End this process when process ``pid`` (its launcher, on this machine) ends, kill -9 included — also
+    when it ended before this call (a joblib worker that receives its first job from a launcher killed
+    meanwhile); True if a watch was started.
+
+    A daemon thread polls every ``poll`` s: the launcher is gone or a zombie, or, when it was this
+    process's parent, the parent pid changed (an orphan is handed to init or a subreaper).  This
+    process then gets SIGTERM, whose handler marks a job's run KILLED (:func:`install`), and
+    ``os._exit`` follows after ``grace`` s.  Polling, not Linux's ``PR_SET_PDEATHSIG``: that fires when
+    the *thread* that started the process ends, and joblib starts its workers from a helper thread.
+    """
+    global _watched
+    if _watched is not None:
+        return False
+    child = os.getppid() == pid
+
+    def watch() -> None:
+        while not ((child and os.getppid() != pid) or ended(pid)):
+            time.sleep(poll)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(grace)
+        os._exit(128 + signal.SIGTERM)
+
+    _watched = pid
+    threading.Thread(target=watch, name="maglev-exit-with-launcher", daemon=True).start()
     return True

@@ -55,7 +55,8 @@ def open_store(uri: str, experiment: str):
     otherwise); a SQLite file is opened under the store lock, so a store another process
     is still creating is waited for, not migrated twice.
     """
-    from maglev.study.tracking import TrackingUnreachable, new_client, sqlite_path
+    from maglev.study.credentials import public
+    from maglev.study.tracking import StoreProblem, TrackingUnreachable, new_client, sqlite_path
 
     db = sqlite_path(uri)
     if db is not None and not db.is_file():
@@ -67,13 +68,15 @@ def open_store(uri: str, experiment: str):
         client = new_client(uri)
     except TrackingUnreachable as exc:
         raise SweepError(str(exc.code).removeprefix("maglev: ")) from None
+    except StoreProblem as exc:
+        raise SweepError(str(exc)) from None
     try:
         exp = client.get_experiment_by_name(experiment)
         known = [e.name for e in client.search_experiments()] if exp is None else []
     except MlflowException as exc:
-        raise SweepError(f"cannot read the MLflow store {uri}: {exc.message}") from None
+        raise SweepError(f"cannot read the MLflow store {public(uri)}: {exc.message}") from None
     if exp is None:
-        raise SweepError(f"no experiment {experiment!r} in {uri} (experiments: {', '.join(known) or 'none'})")
+        raise SweepError(f"no experiment {experiment!r} in {public(uri)} (experiments: {', '.join(known) or 'none'})")
     return client, exp.experiment_id
 
 
@@ -152,7 +155,9 @@ def load_sweep(uri: str, experiment: str, parent_id: str | None = None, reap: bo
         detail = ", ".join(f"{n} {s}" for s, n in sorted(ignored.items())) or "no model runs at all"
         raise SweepError(f"sweep {name!r} (parent run {parent.info.run_id}) has no FINISHED model runs "
                          f"({detail})")
-    return Sweep(client=client, uri=uri, experiment_id=exp_id, experiment=experiment, parent=parent,
+    from maglev.study.credentials import public
+
+    return Sweep(client=client, uri=public(uri), experiment_id=exp_id, experiment=experiment, parent=parent,
                  runs=model_rows(finished), ignored=ignored)
 
 

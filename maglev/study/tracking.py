@@ -25,6 +25,7 @@ import subprocess
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
 
@@ -35,6 +36,7 @@ from mlflow import MlflowClient  # noqa: E402
 from mlflow.entities import Metric, Param, RunTag  # noqa: E402
 
 from maglev.locks import exclusive  # noqa: E402
+from maglev.study.credentials import public, to_env  # noqa: E402
 from maglev.paths import project_root  # noqa: E402
 
 PARENT_FILE = "parent_run_id"
@@ -67,8 +69,15 @@ class TrackingUnreachable(SystemExit):
     """
 
     def __init__(self, uri: str, why: str) -> None:
+        global unreachable
+        unreachable = uri = public(uri)
         super().__init__(f"maglev: the MLflow tracking server {uri} cannot be reached ({why}); start it, "
                          "or fix tracking.uri")
+
+
+# the URI of a server this process found unreachable (the cleanup at exit then writes nothing: every call
+# would wait out its retries against a dead server)
+unreachable: str | None = None
 
 
 # bounded HTTP retries when the config says nothing (CLI commands): ≈ 2 s on a refused port
@@ -79,16 +88,26 @@ def is_http(uri: str) -> bool:
     return uri.startswith(("http://", "https://"))
 
 
-def http_settings(max_retries: int, timeout_s: int, override: bool = True) -> None:
-    """Bound MLflow's HTTP retries (it reads these variables on every request; workers inherit them).
+def http_env(max_retries: int, timeout_s: int) -> dict[str, str]:
+    """MLflow's variables bounding its HTTP retries: ``max_retries`` retries (urllib3 waits 0, 2, 4 … s between
+    attempts) and ``timeout_s`` per attempt (MLflow takes whole seconds, at most 10 retries)."""
+    return {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": str(int(max_retries)), "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+            "MLFLOW_HTTP_REQUEST_TIMEOUT": str(int(timeout_s)),
+            "MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT": "true"}  # else every run's end prints two URLs
 
-    ``max_retries`` retries (urllib3 waits 0, 2, 4 … s between attempts) and ``timeout_s`` per attempt (MLflow
-    takes whole seconds, at most 10 retries).  ``override=False`` keeps values the user set.
-    """
-    values = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": str(int(max_retries)), "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
-              "MLFLOW_HTTP_REQUEST_TIMEOUT": str(int(timeout_s)),
-              "MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT": "true"}  # else every run's end prints two URLs
-    for key, value in values.items():
+
+def tracking_env(tracking: dict) -> dict[str, str]:
+    """The HTTP bounds of a ``tracking`` config, for a process the study starts (the figure renderer): it
+    must have them before its first MLflow call, or it retries a dead server with MLflow's defaults (7
+    retries of 120 s each: a sweep whose server died exited after 998 s, waiting for its renderer)."""
+    return http_env(tracking.get("max_retries", HTTP_DEFAULTS["max_retries"]),
+                    tracking.get("timeout_s", HTTP_DEFAULTS["timeout_s"]))
+
+
+def http_settings(max_retries: int, timeout_s: int, override: bool = True) -> None:
+    """Bound MLflow's HTTP retries in this process (it reads these variables on every request; processes
+    started later inherit them).  ``override=False`` keeps values the user set."""
+    for key, value in http_env(max_retries, timeout_s).items():
         if override:
             os.environ[key] = value
         else:
@@ -122,9 +141,123 @@ def _short(exc: BaseException) -> str:
     return text.rsplit(": ", 1)[-1].strip(" )\"'")[:200] or type(exc).__name__
 
 
-def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None = None) -> MlflowClient:
+class StoreProblem(RuntimeError):
+    """A SQLite store that cannot be used — damaged, read-only, or not creatable — in one line saying what to do."""
+
+
+_checked: set[Path] = set()  # stores this process has checked (PRAGMA quick_check reads the whole file)
+
+
+def check_store(db: Path, write: bool = True) -> None:
+    """An existing SQLite store must pass ``PRAGMA quick_check`` (a truncated or overwritten file fails it;
+    MLflow itself noticed 8 KB of garbage inside nowhere) and, for ``write``, be writable with its folder
+    (SQLite writes a journal beside it).  Once per process and file; :class:`StoreProblem` otherwise."""
+    import sqlite3
+
+    if not db.is_file() or db in _checked:
+        return
+    aside = f"move it aside (mv {db} {db}.damaged) and restore a backup, or pass another tracking.uri"
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+        try:
+            found = [row[0] for row in con.execute("PRAGMA quick_check(3)")]
+            tables = {row[0] for row in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        finally:
+            con.close()
+    except sqlite3.DatabaseError as exc:
+        raise StoreProblem(f"the MLflow store {db} is damaged ({exc}); {aside}") from None
+    if found != ["ok"]:
+        said = "; ".join(line.strip() for text in found for line in text.splitlines() if not line.startswith("***"))
+        raise StoreProblem(f"the MLflow store {db} is damaged (PRAGMA quick_check: {said[:160]}); {aside}")
+    if tables and "runs" not in tables and not any(t.startswith("_alembic_tmp_") for t in tables):
+        raise StoreProblem(f"{db} is an SQLite file but not an MLflow store (no runs table); pass another "
+                           "tracking.uri")
+    if write and not (os.access(db, os.W_OK) and os.access(db.parent, os.W_OK)):
+        raise StoreProblem(f"the MLflow store {db} is read-only (the file or its folder {db.parent}); make both "
+                           "writable, or copy the store elsewhere and pass its tracking.uri")
+    _checked.add(db)
+
+
+def _first_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:200]}"
+
+
+def _forget_engine(uri: str) -> None:
+    """Drop MLflow's cached SQLAlchemy engine of ``uri`` (``SqlAlchemyStore._engine_map``, MLflow 3.x): its
+    pooled connections would go on reading a file that was replaced or moved aside."""
+    from mlflow.store.tracking.sqlalchemy_store import SqlAlchemyStore
+
+    engine = getattr(SqlAlchemyStore, "_engine_map", {}).pop(uri, None)
+    if engine is not None:
+        engine.dispose()
+
+
+def _create_store(db: Path) -> None:
+    """Create and migrate a new SQLite store atomically: in a file beside it, renamed into place once
+    complete.  A creation that fails (a full disk) leaves nothing; before, it left a half-migrated file
+    that every later launch failed on (``table _alembic_tmp_experiments already exists``)."""
+    import uuid
+
+    part = db.with_name(f"{db.name}.creating-{uuid.uuid4().hex[:12]}")  # MLflow caches a store per URI
+    try:
+        db.parent.mkdir(parents=True, exist_ok=True)
+        MlflowClient(tracking_uri=f"sqlite:///{part}")._tracking_client.store  # noqa: B018 — creates, migrates
+        _forget_engine(f"sqlite:///{part}")
+        os.replace(part, db)
+    except Exception as exc:
+        _forget_engine(f"sqlite:///{part}")
+        part.unlink(missing_ok=True)
+        raise StoreProblem(f"the MLflow store {db} could not be created ({_first_line(exc)}); nothing was left "
+                           "behind: free space or fix the folder's permissions, then launch again") from None
+
+
+def _half_made(db: Path) -> bool:
+    """A store whose creation was interrupted: MLflow's migration left an ``_alembic_tmp_*`` table and the
+    store has no runs (a store with runs is never moved aside)."""
+    import sqlite3
+
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    try:
+        tables = {row[0] for row in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        runs = con.execute("SELECT count(*) FROM runs").fetchone()[0] if "runs" in tables else 0
+    finally:
+        con.close()
+    return runs == 0 and any(t.startswith("_alembic_tmp_") for t in tables)
+
+
+def _sqlite_client(db: Path, uri: str, write: bool) -> MlflowClient:
+    """A client of a SQLite store (under the store lock): created atomically when missing, checked when it
+    exists, repaired when an interrupted creation left it half-made (and said so)."""
+    import logging
+
+    if not db.exists():
+        _create_store(db)
+    check_store(db, write)
+    try:
+        client = MlflowClient(tracking_uri=uri)
+        client._tracking_client.store  # noqa: B018 — opening the store migrates it: fail here, not later
+        return client
+    except Exception as exc:
+        if not _half_made(db):
+            raise StoreProblem(f"the MLflow store {db} cannot be opened ({_first_line(exc)}); move it aside "
+                               f"(mv {db} {db}.damaged) and restore a backup, or pass another tracking.uri") from None
+        aside = db.with_name(f"{db.name}.half-made-{time.strftime('%Y%m%d-%H%M%S')}")
+        _forget_engine(uri)
+        os.replace(db, aside)
+        logging.getLogger("maglev.study").warning(
+            "the MLflow store %s was left half-made by an interrupted creation (%s) and had no runs; moved it "
+            "to %s and created it anew", db, _first_line(exc), aside.name)
+        _create_store(db)
+        return MlflowClient(tracking_uri=uri)
+
+
+def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None = None,
+               write: bool = True) -> MlflowClient:
     """A client of the store at ``uri``: a server is checked first, with bounded retries; a SQLite
-    store is created (migrated) under :func:`store_lock`, the only safe moment for it."""
+    store is created (migrated) under :func:`store_lock`, the only safe moment for it, atomically, and an
+    existing one is checked first (``write``: it must be writable; :class:`StoreProblem`).  A user and password
+    in a server's URI go to MLflow's variables (:mod:`maglev.study.credentials`)."""
+    uri = to_env(uri)
     if is_http(uri):
         given = max_retries is not None
         http_settings(max_retries if given else HTTP_DEFAULTS["max_retries"],
@@ -132,8 +265,11 @@ def new_client(uri: str, max_retries: int | None = None, timeout_s: int | None =
         check_reachable(uri, float(os.environ["MLFLOW_HTTP_REQUEST_TIMEOUT"]),
                         int(os.environ["MLFLOW_HTTP_REQUEST_MAX_RETRIES"]))
         return MlflowClient(tracking_uri=uri)
-    with store_lock(uri):
-        client = MlflowClient(tracking_uri=uri)
+    db = sqlite_path(uri)
+    if db is not None:
+        check_store(db, write)  # before the lock: a read-only folder cannot hold the lock file either
+    with store_lock(uri) if db is None or os.access(db.parent, os.W_OK) else contextlib.nullcontext():
+        client = MlflowClient(tracking_uri=uri) if db is None else _sqlite_client(db, uri, write)
     _defer_signals_in_sessions(client)
     return client
 
@@ -188,18 +324,35 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
 EXPERIMENT_KIND = "custom_model_development"  # MLflow 3: "model training", not GenAI (mlflow.experimentKind)
 NOTE = "mlflow.note.content"  # a run's or experiment's description (Markdown; the table shows its start raw)
 SHARE_KEY = "maglev"  # the runs table's shared view: experiment tag mlflow.sharedViewState.<key>
+def _decimals(n: int) -> Callable[[float], float]:
+    return lambda x: round(x, n)
+
+
+def _significant(n: int) -> Callable[[float], float]:
+    return lambda x: float(f"{x:.{n}g}")
+
+
+def _minus_log10(x: float) -> float:
+    """−log10 p rounded to 0.01 (p = 0 shows as 300): the residual tests pass at p ≥ 0.01, i.e. at ≤ 2."""
+    return round(-math.log10(max(x, 1e-300)), 2) + 0.0
+
+
 # the metrics a user compares first, also logged under a common prefix so that they sort and filter together,
-# rounded to what the table can show (``key.<name>``: (the schema's metric, decimals); the schema's names and
-# full values stay the contract)
-KEY_METRICS = {"key.val_fit": ("val_fit", 2), "key.sim_fit": ("val_fit_sim", 2),
-               "key.naive_fit": ("val_fit_naive", 2), "key.white_p": ("whiteness_pvalue", 4),
-               "key.indep_p": ("independence_pvalue", 4), "key.n_params": ("n_params", 0)}
+# rounded to what the table can show (``key.<name>``: (the schema's metric, its rounding); the schema's names
+# and full values stay the contract).  p-values keep 3 significant digits (rounded to 1e-4 they showed 0
+# below 5e-5) and are also given as −log10 p.
+KEY_METRICS = {"key.val_fit": ("val_fit", _decimals(2)), "key.sim_fit": ("val_fit_sim", _decimals(2)),
+               "key.naive_fit": ("val_fit_naive", _decimals(2)),
+               "key.white_p": ("whiteness_pvalue", _significant(3)),
+               "key.indep_p": ("independence_pvalue", _significant(3)),
+               "key.white_log10p": ("whiteness_pvalue", _minus_log10),
+               "key.indep_log10p": ("independence_pvalue", _minus_log10), "key.n_params": ("n_params", _decimals(0))}
 UI_PARAMS = "workflowType=machine_learning"  # the UI's query parameter for model-training mode
 
 
 def key_metrics(metrics: dict) -> dict:
     """The ``key.*`` copies of a run's metrics (those it has), rounded."""
-    return {k: round(float(metrics[m]), digits) for k, (m, digits) in KEY_METRICS.items() if m in metrics}
+    return {k: rounded(float(metrics[m])) for k, (m, rounded) in KEY_METRICS.items() if m in metrics}
 
 
 def shared_view(search_filter: str | None = None) -> dict:
@@ -403,6 +556,8 @@ def log_files(client: MlflowClient, run_id: str, files: dict) -> None:
     with tempfile.TemporaryDirectory(prefix="maglev-artifacts-") as tmp:
         for rel, content in files.items():
             path = Path(tmp) / rel
+            if Path(tmp).resolve() not in path.resolve().parents:  # an absolute name or '..' would write elsewhere
+                raise ValueError(f"log_files: artifact path {rel!r} leaves the run's artifact folder")
             path.parent.mkdir(parents=True, exist_ok=True)
             if isinstance(content, str):
                 path.write_text(content)

@@ -3,7 +3,8 @@
 ``mlflow ui`` as documented starts four web workers and seven job processes (≈ 3 GB,
 ≈ 80 s to answer on two cores); the job runner only serves MLflow's GenAI features.
 Here the server runs with one worker, without job execution, bound to 127.0.0.1 (no
-authentication: never bind a shared address without protection, see docs/study.md, "Server security").
+authentication: another ``--host`` is warned about; see docs/study.md, "Server security").  A taken
+port is refused before the server starts, and the server is stopped with this command, by Ctrl-C or SIGTERM.
 
 The URL printed opens the runs table in "model training" mode (the query parameter
 ``workflowType=machine_learning``: MLflow 3.17 ignores the experiment's
@@ -86,9 +87,29 @@ def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) 
         print(f"maglev ui: no MLflow store at {db}; run a sweep first (python study.py -m +sweep=lab) "
               "or pass --tracking-uri", file=sys.stderr)
         return 2
+    from maglev.study.tracking import StoreProblem, check_store
+
+    try:
+        if db is not None:
+            check_store(db, write=True)  # the UI writes its views into the store
+    except StoreProblem as exc:
+        print(f"maglev ui: {exc}", file=sys.stderr)
+        return 2
+    if host not in LOOPBACK:
+        print(f"maglev ui: warning: --host {host} serves the store to every machine that can reach this one, "
+              "without authentication (anyone can read, change or delete runs); prefer 127.0.0.1 and an SSH "
+              "tunnel", file=sys.stderr)
+    taken = port_taken(host, port)
+    if taken:
+        print(f"maglev ui: port {port} on {host} is taken ({taken}); pass --port N", file=sys.stderr)
+        return 2
     base = f"http://{host}:{port}"
     env = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
-    proc = subprocess.Popen(server_command(uri, host, port), env=env, stdout=2)  # stdout: only the URL
+    from maglev.study import shutdown
+
+    shutdown.install()  # SIGTERM: SystemExit, so the server below is stopped too
+    # its own process group: stopped as a whole (uvicorn's worker) by stop(), whatever signal reached this one
+    proc = subprocess.Popen(server_command(uri, host, port), env=env, stdout=2, start_new_session=True)
     try:
         url = landing_url(base, uri, experiment)  # while the server starts
         if not wait_healthy(base, proc):
@@ -103,6 +124,38 @@ def serve(uri: str, experiment: str, host: str = "127.0.0.1", port: int = 5000) 
     except KeyboardInterrupt:
         return 0
     finally:
-        if proc.poll() is None:
-            proc.terminate()
-            proc.wait(timeout=20)
+        stop(proc)
+
+
+def stop(proc: subprocess.Popen, timeout: float = 20.0) -> None:
+    """End the server's process group: SIGTERM, then SIGKILL after ``timeout`` s."""
+    import signal
+
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            break
+        try:
+            proc.wait(timeout=timeout)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def port_taken(host: str, port: int) -> str | None:
+    """Why ``host:port`` cannot be bound (None if it can): checked before the server starts, or the URL
+    printed would be answered by whichever server holds the port while ours fails to bind."""
+    import socket
+
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as servers do: TIME_WAIT is no obstacle
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            return exc.strerror or str(exc)
+    return None

@@ -190,14 +190,6 @@ def test_the_cluster_entries_compose_to_a_server_from_mlflows_variables_and_magl
     assert cfg.hydra.launcher.timeout_min == 30 and cfg.hydra.launcher.mem_gb == 4
 
 
-def test_credentials_in_the_tracking_uri_are_refused_without_echoing_them():
-    plain = task(cfg_for(["tracking=server", "tracking.uri=http://alice:s3cret@login1:5000"]))
-    with pytest.raises(StudyConfigError, match=r"tracking.uri must not hold credentials \(http://…@login1:5000\): "
-                                               "set MLFLOW_TRACKING_USERNAME") as err:
-        check(plain)
-    assert "s3cret" not in str(err.value) and "alice" not in str(err.value)
-
-
 def test_real_record_base_is_not_a_dataset_on_its_own():
     with pytest.raises(Exception, match="dataset.name|Missing mandatory value"):
         task(cfg_for(["dataset=real_record"]))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import shutil
 import signal
@@ -152,8 +153,10 @@ def test_runs_explain_themselves_in_the_ui(sweep):
         assert t["mlflow.source.name"] == "study.py" and t["mlflow.source.git.commit"] == t["git_commit"]
         assert {k: v for k, v in m.items() if k.startswith("key.")} == {  # the columns compared first, rounded
             "key.val_fit": round(m["val_fit"], 2), "key.sim_fit": round(m["val_fit_sim"], 2),
-            "key.naive_fit": round(m["val_fit_naive"], 2), "key.white_p": round(m["whiteness_pvalue"], 4),
-            "key.indep_p": round(m["independence_pvalue"], 4), "key.n_params": 4}
+            "key.naive_fit": round(m["val_fit_naive"], 2), "key.white_p": float(f"{m['whiteness_pvalue']:.3g}"),
+            "key.indep_p": float(f"{m['independence_pvalue']:.3g}"), "key.n_params": 4,
+            "key.white_log10p": round(-math.log10(max(m["whiteness_pvalue"], 1e-300)), 2),
+            "key.indep_log10p": round(-math.log10(max(m["independence_pvalue"], 1e-300)), 2)}
         structure, orders, _, dataset = r.info.run_name.split(" ")
         assert (structure, orders.split("-"), dataset) == (t["structure"], t["orders"].strip("[]").split(),
                                                           t["dataset"])
