@@ -28,16 +28,17 @@ run cut short once it stays above the first minimum after ``CHECK_PATIENCE`` ite
 and is not falling fast enough to get below it.  On real records the first start
 usually wins and the search ends there (BJ [4 2 2 4 1] on binary_signal_2's first
 half: one full run and 16 short ones, 53 iterations, where searching every start and
-lower model took 24 runs and 425 iterations to the same minimum).  Only when the first run did not converge or a lower
-model ends below it (the evidence that the first start may be poor) are further starts
-tried — plain ARX (for OE/BJ its input path with a Hannan–Rissanen noise model), BJ
-holding an ARX model (F = D = A, C = 1), the refined IV estimate for BJ (prefilter
-D/(C F), noise model refitted each round), for the general structure a BJ model whose
-common poles become A — and the lower models searched as a plain call searches them
-(their own lower models only certified quickly), padded with zeros.  ARMAX and the
-general structure, which have no lower models here, always try their further starts.  Each further run is abandoned once it joins the minimum already
+lower model took 24 runs and 425 iterations to the same minimum).  Only when the first
+run did not converge or a lower model ends below it (the evidence that the first start
+may be poor) are further starts tried — plain ARX (for OE/BJ its input path with a
+Hannan–Rissanen noise model), BJ holding an ARX model (F = D = A, C = 1), the refined IV
+estimate for BJ (prefilter D/(C F), noise model refitted each round), for the general
+structure a BJ model whose common poles become A — and the lower models searched as a
+plain call searches them (their own lower models only certified quickly), padded with
+zeros. ARMAX and the general structure, which have no lower models here, always try
+their further starts. Each further run is abandoned once it joins the minimum already
 found, or when after a few iterations it is still above the best minimum and no longer
-falling fast enough to get below it.  One call fits each lower model once, however many
+falling fast enough to get below it. One call fits each lower model once, however many
 higher models it is nested in.
 """
 
@@ -98,7 +99,7 @@ class Search:
     tolerance: float | None
     runs: dict[tuple[PolySpec, bytes], Minimum] = field(default_factory=dict)
     evaluations: dict[tuple[PolySpec, bytes], Evaluation] = field(default_factory=dict)
-    built: dict[tuple, list[np.ndarray]] = field(default_factory=dict)  # starting points, and SRIV's B/F
+    built: dict[tuple, object] = field(default_factory=dict)  # starting points, and SRIV's (B, F)
     quick: dict[PolySpec, Minimum] = field(default_factory=dict)
     searched: dict[PolySpec, Minimum] = field(default_factory=dict)
 
