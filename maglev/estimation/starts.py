@@ -21,25 +21,22 @@ prediction errors then look white and uncorrelated with past inputs (Ljung's tes
 99 %), no other linear model predicts markedly better and the search stops: on data the
 structure describes, that is one minimisation.
 
-Otherwise, for OE and BJ, the first minimum is certified against its nested lower-order
-models (one order lower in one polynomial, which with zero initial conditions are this
-model with one coefficient zero): each is minimised quickly from its own starts, every
-run cut short once it stays above the first minimum after ``CHECK_PATIENCE`` iterations
-and is not falling fast enough to get below it.  On real records the first start
-usually wins and the search ends there (BJ [4 2 2 4 1] on binary_signal_2's first
-half: one full run and 16 short ones, 53 iterations, where searching every start and
-lower model took 24 runs and 425 iterations to the same minimum).  Only when the first
-run did not converge or a lower model ends below it (the evidence that the first start
-may be poor) are further starts tried — plain ARX (for OE/BJ its input path with a
-Hannan–Rissanen noise model), BJ holding an ARX model (F = D = A, C = 1), the refined IV
-estimate for BJ (prefilter D/(C F), noise model refitted each round), for the general
-structure a BJ model whose common poles become A — and the lower models searched as a
-plain call searches them (their own lower models only certified quickly), padded with
-zeros. ARMAX and the general structure, which have no lower models here, always try
-their further starts. Each further run is abandoned once it joins the minimum already
-found, or when after a few iterations it is still above the best minimum and no longer
-falling fast enough to get below it. One call fits each lower model once, however many
-higher models it is nested in.
+Otherwise further starts are tried, strongest first: plain ARX (for OE/BJ its input
+path with a Hannan–Rissanen noise model), BJ holding an ARX model (F = D = A, C = 1),
+the refined IV estimate for BJ (prefilter D/(C F), noise model refitted each round),
+for the general structure a BJ model whose common poles become A, and for OE and BJ
+the nested lower-order models (one order lower in one polynomial, which with zero
+initial conditions are this model with one coefficient zero) padded with zeros.  Each
+lower model is searched as a plain call searches it, except that its own lower models
+are only minimised quickly: from their own starts, every run cut short once it stays
+above the best minimum of the model they are nested in after ``CHECK_PATIENCE``
+iterations and is not falling fast enough to get below it.  That second level found the
+basin BJ [2 2 2 2 1] ends in on white_noise_2's first half, which BJ [2 3 2 2 1] and
+[2 2 3 2 1] missed by 0.29 % and 0.25 % when a lower model's search stopped at its own
+starts.  Each further run is abandoned once it joins the minimum already found, or when
+after a few iterations it is still above that converged minimum and no longer falling
+fast enough to get below it.  One call fits each model, start and run once, however
+many higher models a lower model is nested in.
 """
 
 from __future__ import annotations
@@ -62,9 +59,8 @@ START_RATIO = 10.0  # once a run has converged, starts this much worse than the 
 WHITENESS_LEVEL = 0.99  # residual tests at this level decide whether more starts are worth trying
 IV_ROUNDS = 20  # refined-IV rounds at most; they stop when F moves less than IV_SETTLED (relative)
 IV_SETTLED = 1e-3
-CHECK_PATIENCE = 2  # iterations a run that only checks for a lower basin gets before it must near the bound
+CHECK_PATIENCE = 2  # iterations a quickly minimised lower model's run gets before it must near the bound
 CUT_SHORT = ("abandoned", "joined")  # runs ended by another run's minimum, not by their own convergence
-FAR = 1.5  # lower-order models whose quick minimum ends this far above the best are not searched in full
 
 
 # ---------------------------------------------------------------------------- search
@@ -110,8 +106,8 @@ class Search:
         ``bound``: runs still above this loss after ``patience`` iterations, and not falling
         fast enough to get below it, are abandoned (a lower-order model matters only where
         it gets below the best minimum of the model it is nested in).  ``full_lowers``:
-        when the evidence asks for it, search the lower models as plain calls do (else
-        they are only certified quickly, which bounds the work to two levels).
+        search the lower models as plain calls do; else (a lower model searched for a
+        higher one) only minimise them quickly, which bounds the work to two levels.
         """
         best: Minimum | None = None
         best_start = np.inf
@@ -147,24 +143,13 @@ class Search:
         descend(pending)
         if not widen:
             return best
-        # certify a converged first minimum against the lower-order models, minimised quickly
-        # from their own starts; the other starts, and the lower models searched in full, only
-        # when it did not converge or some lower model ends below it
-        lowers = lower_neighbours(spec)
-        poor = not lowers or not best.termination.startswith(CONVERGED)
-        for lower in lowers:
-            fitted = self._quick(lower, self._limit(bound, best))
-            if fitted.evaluation.loss < best.evaluation.loss * (1 - 1e-9):
-                poor = True
-                descend([self._evaluate(spec, _padded(spec, lower, fitted))])
-        if not poor:
-            return best
-        descend([self._evaluate(spec, t) for t in self._others(spec)])
-        for lower in lowers if full_lowers else []:
-            limit = self._limit(bound, best)
-            if self._quick(lower, limit).evaluation.loss <= FAR * limit:
-                fitted = self._searched(lower, limit)
-                descend([self._evaluate(spec, _padded(spec, lower, fitted))])
+        # the other starts, and the lower-order models padded with zeros: searched as plain calls
+        # search them (at the top), or minimised quickly (for a lower model searched for a higher one)
+        pending = [self._evaluate(spec, t) for t in self._others(spec)]
+        for lower in lower_neighbours(spec):
+            fitted = self._searched(lower) if full_lowers else self._quick(lower, self._limit(bound, best))
+            pending.append(self._evaluate(spec, _padded(spec, lower, fitted)))
+        descend(pending)
         return best
 
     @staticmethod
@@ -194,10 +179,10 @@ class Search:
             self.quick[spec] = self.run(spec, candidates, False, bound, patience=CHECK_PATIENCE)
         return self.quick[spec]
 
-    def _searched(self, spec: PolySpec, bound: float) -> Minimum:
-        """``spec`` searched as a plain call searches it, its own lower models only certified quickly."""
+    def _searched(self, spec: PolySpec) -> Minimum:
+        """``spec`` searched as a plain call searches it, its own lower models only minimised quickly."""
         if spec not in self.searched:
-            self.searched[spec] = self.run(spec, self._starts(spec), True, bound, full_lowers=False)
+            self.searched[spec] = self.run(spec, self._starts(spec), True, full_lowers=False)
         return self.searched[spec]
 
 
