@@ -47,7 +47,7 @@ from ..initial_state import INITIAL_CONDITIONS
 from ..model import FitReport, PolyModel
 from .least_squares import regression, solve_regression
 from .prediction_error import evaluate, project, triangular_factor
-from .starts import best_minimum, more_starts, nested_theta, starts
+from .starts import best_minimum, nested_theta, starts
 from ..structures import PolySpec
 from ..structures import get as get_structure
 from ..threads import single_threaded_blas
@@ -296,10 +296,10 @@ def _pem(
     y, u = _checked(data, spec, initial_condition)
     y, u, scale = _normalised(spec, y, u)
     candidates = [scale.scaled(nested_theta(spec, _checked_init(spec, init)))] if init is not None else []
-    candidates += starts(spec, y, u)
+    memo: dict = {}
+    candidates += starts(spec, y, u, memo)
     fit_states = _wants_states(spec, candidates, y, u, initial_condition)
-    more = None if init is not None else lambda: more_starts(spec, y, u, fit_states, max_iterations, tolerance)
-    best = best_minimum(spec, candidates, y, u, fit_states, max_iterations, tolerance, more=more)
+    best = best_minimum(spec, candidates, y, u, fit_states, max_iterations, tolerance, widen=init is None, memo=memo)
     ev = best.evaluation
     mode = initial_condition
     if initial_condition == "auto":

@@ -188,6 +188,7 @@ def minimise(
     abandon_above: float | None = None,
     known_minimum: np.ndarray | None = None,
     evaluated: Evaluation | None = None,
+    patience: int = PATIENCE,
 ) -> Minimum:
     """Levenberg–Marquardt from ``theta0`` until the expected relative improvement < ``tolerance``.
 
@@ -200,7 +201,7 @@ def minimise(
     where they are (on the stability boundary) and the other parameters free, so the
     search goes on along the boundary instead of stalling against the reflection.
     For secondary starting points, once another start has converged: with
-    ``abandon_above`` the run stops after ``PATIENCE`` iterations if its loss is still
+    ``abandon_above`` the run stops after ``patience`` iterations if its loss is still
     above that value and no longer falling fast enough to get below it, and with
     ``known_minimum`` it stops as soon as it reaches that parameter vector (within
     ``SAME_MINIMUM`` relative distance), since it would only repeat that run's work.
@@ -237,10 +238,10 @@ def minimise(
                     break
             iterations -= 1
             break
-        if abandon_above is not None and iterations > PATIENCE and current.loss > abandon_above:
+        if abandon_above is not None and iterations > patience and current.loss > abandon_above:
             # still above the best minimum: stop unless the last step gained enough to
             # get below it within as many steps again
-            if (previous_loss - current.loss) * PATIENCE < current.loss - abandon_above:
+            if (previous_loss - current.loss) * patience < current.loss - abandon_above:
                 termination = "abandoned: stays above the best minimum from another start"
                 iterations -= 1
                 break

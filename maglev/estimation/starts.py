@@ -19,22 +19,30 @@ nested orders the loss never rises.  With a warm start only these two are tried.
 The search minimises from the strongest start (lowest loss) to convergence.  If its
 prediction errors then look white and uncorrelated with past inputs (Ljung's tests at
 99 %), no other linear model predicts markedly better and the search stops: on data the
-structure describes, that is one minimisation.  Otherwise further starts are built —
-plain ARX (for OE/BJ its input path with a Hannan–Rissanen noise model), BJ holding an
-ARX model (F = D = A, C = 1), the refined IV estimate for BJ (prefilter D/(C F), noise
-model refitted each round), for OE and BJ the models one order lower in each
-polynomial minimised from their principal starts and padded with zeros (what a sweep
-passes as its warm start), and for the general structure a BJ model whose common
-poles become A — and tried strongest first.  Each is abandoned once it joins the
-minimum already found, or when after a few iterations it is still above that converged
-minimum and no longer falling fast enough to get below it.
+structure describes, that is one minimisation.
+
+Otherwise further starts are tried, strongest first: plain ARX (for OE/BJ its input
+path with a Hannan–Rissanen noise model), BJ holding an ARX model (F = D = A, C = 1),
+the refined IV estimate for BJ (prefilter D/(C F), noise model refitted each round),
+for the general structure a BJ model whose common poles become A, and for OE and BJ
+the nested lower-order models (one order lower in one polynomial, which with zero
+initial conditions are this model with one coefficient zero) padded with zeros.  Each
+lower model is searched as a plain call searches it, except that its own lower models
+are only minimised quickly: from their own starts, every run cut short once it stays
+above the best minimum of the model they are nested in after ``CHECK_PATIENCE``
+iterations and is not falling fast enough to get below it.  That second level found the
+basin BJ [2 2 2 2 1] ends in on white_noise_2's first half, which BJ [2 3 2 2 1] and
+[2 2 3 2 1] missed by 0.29 % and 0.25 % when a lower model's search stopped at its own
+starts.  Each further run is abandoned once it joins the minimum already found, or when
+after a few iterations it is still above that converged minimum and no longer falling
+fast enough to get below it.  One call fits each model, start and run once, however
+many higher models a lower model is nested in.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.linalg import toeplitz
@@ -43,7 +51,7 @@ from scipy.stats import chi2
 from .least_squares import lagged_iv, lagged_lstsq
 from ..model import PolyModel
 from ..polynomials import filt, polymul, stabilize
-from .prediction_error import CONVERGED, Minimum, evaluate, minimise, project
+from .prediction_error import CONVERGED, PATIENCE, Evaluation, Minimum, evaluate, minimise, project
 from ..structures import PolySpec
 
 ONE = np.ones(1)
@@ -51,6 +59,8 @@ START_RATIO = 10.0  # once a run has converged, starts this much worse than the 
 WHITENESS_LEVEL = 0.99  # residual tests at this level decide whether more starts are worth trying
 IV_ROUNDS = 20  # refined-IV rounds at most; they stop when F moves less than IV_SETTLED (relative)
 IV_SETTLED = 1e-3
+CHECK_PATIENCE = 2  # iterations a quickly minimised lower model's run gets before it must near the bound
+CUT_SHORT = ("abandoned", "joined")  # runs ended by another run's minimum, not by their own convergence
 
 
 # ---------------------------------------------------------------------------- search
@@ -62,34 +72,118 @@ def best_minimum(
     fit_states: bool,
     max_iterations: int,
     tolerance: float | None,
-    more: Callable[[], list[np.ndarray]] | None = None,
+    widen: bool = False,
+    memo: dict | None = None,
 ) -> Minimum:
-    """The lowest minimum found from ``starts`` (and ``more()``, built only when needed),
-    as described in the module docstring."""
-    pending = [evaluate(spec, project(spec, t), y, u, fit_states, False) for t in starts]
-    best, runs = None, 0
-    while pending:
-        start = pending.pop(int(np.argmin([ev.loss for ev in pending])))
-        converged = best is not None and best.termination.startswith(CONVERGED)
-        if converged and start.loss > START_RATIO * best_start:
-            continue
-        result = minimise(
-            spec, start.theta, y, u, fit_states, max_iterations, tolerance,
-            abandon_above=best.evaluation.loss if converged else None,
-            known_minimum=best.evaluation.theta if converged else None,
-            evaluated=start,
-        )
-        runs += 1
-        if best is None:
-            best_start = start.loss
-        if best is None or result.evaluation.loss < best.evaluation.loss * (1 - 1e-9):
-            best = result
-        if runs == 1 and best.termination.startswith(CONVERGED):
-            if explains(best.evaluation.e, u):
-                break
-        if runs == 1 and more is not None:
-            pending += [evaluate(spec, project(spec, t), y, u, fit_states, False) for t in more()]
-    return best
+    """The lowest minimum found from ``starts``, and with ``widen`` from the further starts
+    the module docstring describes, built only when the evidence asks for them (``memo``:
+    the one `starts` filled, so that lower-order models reuse what they share)."""
+    return Search(y, u, fit_states, max_iterations, tolerance, built=memo if memo is not None else {}).run(
+        spec, starts, widen)
+
+
+@dataclass
+class Search:
+    """One estimator call's search: its data and settings, and the lower-order models it has
+    already minimised (quickly, and searched in full), so that each is fitted once however
+    many higher models it is nested in."""
+
+    y: np.ndarray
+    u: np.ndarray
+    fit_states: bool
+    max_iterations: int
+    tolerance: float | None
+    runs: dict[tuple[PolySpec, bytes], Minimum] = field(default_factory=dict)
+    evaluations: dict[tuple[PolySpec, bytes], Evaluation] = field(default_factory=dict)
+    built: dict[tuple, object] = field(default_factory=dict)  # starting points, and SRIV's (B, F)
+    quick: dict[PolySpec, Minimum] = field(default_factory=dict)
+    searched: dict[PolySpec, Minimum] = field(default_factory=dict)
+
+    def run(self, spec: PolySpec, starts: list[np.ndarray], widen: bool, bound: float | None = None,
+            full_lowers: bool = True, patience: int = PATIENCE) -> Minimum:
+        """Minimise from ``starts`` strongest first; with ``widen`` go on as the module docstring says.
+
+        ``bound``: runs still above this loss after ``patience`` iterations, and not falling
+        fast enough to get below it, are abandoned (a lower-order model matters only where
+        it gets below the best minimum of the model it is nested in).  ``full_lowers``:
+        search the lower models as plain calls do; else (a lower model searched for a
+        higher one) only minimise them quickly, which bounds the work to two levels.
+        """
+        best: Minimum | None = None
+        best_start = np.inf
+
+        def descend(pending: list[Evaluation]) -> None:
+            nonlocal best, best_start
+            while pending:
+                start = pending.pop(int(np.argmin([ev.loss for ev in pending])))
+                converged = best is not None and best.termination.startswith(CONVERGED)
+                if converged and start.loss > START_RATIO * best_start:
+                    continue
+                key = (spec, start.theta.tobytes())
+                result = self.runs.get(key)
+                if result is None:
+                    limits = [x for x in (best.evaluation.loss if converged else None, bound) if x is not None]
+                    result = minimise(
+                        spec, start.theta, self.y, self.u, self.fit_states, self.max_iterations, self.tolerance,
+                        abandon_above=min(limits) if limits else None,
+                        known_minimum=best.evaluation.theta if converged else None,
+                        evaluated=start, patience=patience,
+                    )
+                    if not result.termination.startswith(CUT_SHORT):
+                        self.runs[key] = result
+                if best is None:
+                    best_start = start.loss
+                if best is None or result.evaluation.loss < best.evaluation.loss * (1 - 1e-9):
+                    best = result
+
+        pending = [self._evaluate(spec, t) for t in starts]
+        descend([pending.pop(int(np.argmin([ev.loss for ev in pending])))])
+        if widen and best.termination.startswith(CONVERGED) and explains(best.evaluation.e, self.u):
+            return best
+        descend(pending)
+        if not widen:
+            return best
+        # the other starts, and the lower-order models padded with zeros: searched as plain calls
+        # search them (at the top), or minimised quickly (for a lower model searched for a higher one)
+        pending = [self._evaluate(spec, t) for t in self._others(spec)]
+        for lower in lower_neighbours(spec):
+            fitted = self._searched(lower) if full_lowers else self._quick(lower, self._limit(bound, best))
+            pending.append(self._evaluate(spec, _padded(spec, lower, fitted)))
+        descend(pending)
+        return best
+
+    @staticmethod
+    def _limit(bound: float | None, best: Minimum) -> float:
+        return best.evaluation.loss if bound is None else min(bound, best.evaluation.loss)
+
+    def _evaluate(self, spec: PolySpec, theta: np.ndarray) -> Evaluation:
+        key = (spec, theta.tobytes())
+        if key not in self.evaluations:
+            self.evaluations[key] = evaluate(spec, project(spec, theta), self.y, self.u, self.fit_states, False)
+        return self.evaluations[key]
+
+    def _starts(self, spec: PolySpec) -> list[np.ndarray]:
+        if (spec, "principal") not in self.built:
+            self.built[spec, "principal"] = starts(spec, self.y, self.u, self.built)
+        return self.built[spec, "principal"]
+
+    def _others(self, spec: PolySpec) -> list[np.ndarray]:
+        if (spec, "others") not in self.built:
+            self.built[spec, "others"] = other_starts(spec, self.y, self.u, self.max_iterations, self.tolerance)
+        return self.built[spec, "others"]
+
+    def _quick(self, spec: PolySpec, bound: float) -> Minimum:
+        """``spec`` minimised from its principal and other starts, runs that stay above ``bound`` cut short."""
+        if spec not in self.quick:
+            candidates = self._starts(spec) + self._others(spec)
+            self.quick[spec] = self.run(spec, candidates, False, bound, patience=CHECK_PATIENCE)
+        return self.quick[spec]
+
+    def _searched(self, spec: PolySpec) -> Minimum:
+        """``spec`` searched as a plain call searches it, its own lower models only minimised quickly."""
+        if spec not in self.searched:
+            self.searched[spec] = self.run(spec, self._starts(spec), True, full_lowers=False)
+        return self.searched[spec]
 
 
 def explains(e: np.ndarray, u: np.ndarray, lags: int = 25) -> bool:
@@ -162,13 +256,17 @@ def nested_theta(spec: PolySpec, init) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- starting points
-def starts(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
-    """The principal starting parameter vector(s) for ``spec`` (see the module docstring)."""
+def starts(spec: PolySpec, y: np.ndarray, u: np.ndarray, memo: dict | None = None) -> list[np.ndarray]:
+    """The principal starting parameter vector(s) for ``spec`` (see the module docstring); ``memo``
+    keeps the refined-IV input path per (nb, nf, nk), shared by models that differ in C or D only."""
     na, nb, nc, nd, nf, nk = spec.na, spec.nb, spec.nc, spec.nd, spec.nf, spec.nk
     if nf == 0 and nd == 0:  # ARMAX (or ARX-like pem): pseudo-linear regression
         return [_pseudo_linear(spec, y, u) if nc else spec.theta(*ls_arx(y, u, na, nb, nk))]
     if na == 0:  # OE / BJ: refined IV for the input path, Hannan–Rissanen for the noise
-        B, F = refined_iv(y, u, nb, nf, nk)
+        memo = {} if memo is None else memo
+        if ("sriv", nb, nf, nk) not in memo:
+            memo["sriv", nb, nf, nk] = refined_iv(y, u, nb, nf, nk)
+        B, F = memo["sriv", nb, nf, nk]
         return [spec.theta(None, B, *hannan_rissanen(y - filt(B, F, u), nc, nd), F)]
     # general: A from ARX, F starts at 1, noise from the ARX residual
     A, B = ls_arx(y, u, na, nb, nk)
@@ -176,10 +274,9 @@ def starts(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
     return [spec.theta(A, B, C, D, None)]
 
 
-def more_starts(spec: PolySpec, y, u, fit_states: bool, max_iterations: int, tolerance,
-                nested: bool = True) -> list[np.ndarray]:
-    """The other starting points, built only when the strongest start leaves structure in the
-    residuals; with ``nested`` also the OE/BJ models one order lower (`_nested_lower`)."""
+def other_starts(spec: PolySpec, y, u, max_iterations: int, tolerance) -> list[np.ndarray]:
+    """The starting points tried when the strongest one leaves structure in the residuals
+    (the nested lower-order models aside, which `Search` fits itself)."""
     na, nb, nc, nd, nf, nk = spec.na, spec.nb, spec.nc, spec.nd, spec.nf, spec.nk
     if nf == 0 and nd == 0:  # ARMAX: the plain ARX model
         return [spec.theta(*ls_arx(y, u, na, nb, nk))] if nc else []
@@ -197,28 +294,22 @@ def more_starts(spec: PolySpec, y, u, fit_states: bool, max_iterations: int, tol
             B, F = refined_iv(y, u, nb, nf, nk, prefilter=(D, C), start=(B, F))
             C, D = hannan_rissanen(y - filt(B, F, u), nc, nd)
         out.append(spec.theta(None, B, C, D, F))
-    return out + (_nested_lower(spec, y, u, fit_states, max_iterations, tolerance) if nested else [])
-
-
-def _nested_lower(spec: PolySpec, y, u, fit_states: bool, max_iterations: int, tolerance) -> list[np.ndarray]:
-    """The OE/BJ models one order lower in each polynomial, padded with zeros: starts
-    that carry a basin found at a lower order up to this one (with zero initial
-    conditions their loss is the lower model's).  Each lower model is searched as a
-    plain call searches it — its principal start, then its other starts if it leaves
-    structure — except for its own nested starts (no recursion).  Minimising it from
-    the principal start alone left BJ [1 1 3 3 1] 17 % and [1 3 2 3 1] 12 % above their
-    nested lower models on binary_signal_2; this search costs about twice as much on
-    such records and nothing on data the structure describes (one start suffices)."""
-    out = []
-    for key in ("nb", "nc", "nd", "nf"):
-        order = getattr(spec, key)
-        if order > (key == "nb"):
-            lower = replace(spec, **{key: order - 1})
-            fitted = best_minimum(lower, starts(lower, y, u), y, u, fit_states, max_iterations, tolerance,
-                                  more=lambda lower=lower: more_starts(lower, y, u, fit_states, max_iterations,
-                                                                       tolerance, nested=False))
-            out.append(spec.theta(*lower.polys(fitted.evaluation.theta)))
     return out
+
+
+def lower_neighbours(spec: PolySpec) -> list[PolySpec]:
+    """The OE/BJ models one order lower in one polynomial (nb stays >= 1): with zero initial
+    conditions each is ``spec`` with one coefficient zero, so ``spec``'s minimum is at or
+    below theirs.  None for ARMAX and the general structure."""
+    if spec.na or (spec.nf == 0 and spec.nd == 0):
+        return []
+    return [replace(spec, **{key: getattr(spec, key) - 1}) for key in ("nb", "nc", "nd", "nf")
+            if getattr(spec, key) > (key == "nb")]
+
+
+def _padded(spec: PolySpec, lower: PolySpec, fitted: Minimum) -> np.ndarray:
+    """``lower``'s minimum as a parameter vector of ``spec`` (the extra coefficient zero)."""
+    return spec.theta(*lower.polys(fitted.evaluation.theta))
 
 
 def ls_arx(y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int) -> tuple[np.ndarray, np.ndarray]:
