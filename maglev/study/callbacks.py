@@ -33,8 +33,14 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, datasets, render, tracking
 from maglev.study.config import StudyConfigError, check, task_config
+from maglev.study.lazy import lazy_module
+
+# imported on first use: a relaunch with nothing to do (maglev.study.resume) ends before MLflow is imported
+claims = lazy_module("maglev.study.claims")
+datasets = lazy_module("maglev.study.datasets")
+render = lazy_module("maglev.study.render")
+tracking = lazy_module("maglev.study.tracking")
 
 log = logging.getLogger("maglev.study")
 
@@ -137,6 +143,45 @@ def check_sweep(config: DictConfig) -> list[dict]:
     return checked
 
 
+class NothingToDo(SystemExit):
+    """The relaunch of a finished sweep finds nothing to run, reference, rank or report: exit status 0."""
+
+
+def ranking_settings(config: DictConfig) -> dict | None:
+    """The ranking callback's settings (``structure``, ``report_dir``), None when the sweep is not ranked."""
+    for cb in (config.hydra.get("callbacks") or {}).values():
+        if str(cb.get("_target_", "")).endswith(".RankingCallback"):
+            return {"structure": cb.get("structure"), "report_dir": cb.get("report_dir")}
+    return None
+
+
+def stop_if_nothing_to_do(config: DictConfig, task: dict, jobs: list[dict]) -> None:
+    """Raise :class:`NothingToDo` when every job's config is FINISHED in this sweep and its ranking and report
+    are those of these runs (:func:`maglev.study.resume.nothing_to_do`: one query, no MLflow import)."""
+    from maglev.paths import reports_dir
+    from maglev.study.config import config_hash
+    from maglev.study.resume import nothing_to_do
+
+    if not jobs or not all(j["study"]["skip_finished"] for j in jobs):
+        return
+    sid, name = sweep_id(config, task), task["study"]["name"]
+    ranking = ranking_settings(config)
+    report = None
+    if ranking is not None:
+        report = Path(ranking["report_dir"]) if ranking["report_dir"] else reports_dir()
+        if report.suffix.lower() != ".html":
+            report = report / f"{name}-{sid[:8]}.html"  # maglev.study.ranking.report_name
+    done = nothing_to_do(task["tracking"]["uri"], task["tracking"]["experiment"], sid,
+                         [config_hash(j) for j in jobs], bool(task["lab"]["enabled"]), ranking, report)
+    if done is None:
+        return
+    ranked = (f"; ranking run {done.ranking_run} ranked these {done.ranked} runs; report {done.report}"
+              if done.ranking_run else "")
+    log.info("sweep %r: nothing to do: the %d configs of its %d jobs all have FINISHED runs under parent run "
+             "%s%s (study.skip_finished=false runs them again)", name, done.configs, len(jobs), done.parent, ranked)
+    raise NothingToDo(0)
+
+
 class SweepCallback(Callback):
     def __init__(self) -> None:
         self.client = None
@@ -157,6 +202,7 @@ class SweepCallback(Callback):
         task = task_config(config)
         jobs = check_sweep(config)
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
+        stop_if_nothing_to_do(config, task, jobs)
         datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
             render.start()  # the renderer's process imports while the store and the lab steps are made
@@ -319,7 +365,7 @@ class RankingCallback(Callback):
             return
         try:
             rank_and_report(task["tracking"]["uri"], task["tracking"]["experiment"], parent,
-                            self.structure, self.report_dir)
+                            self.structure, self.report_dir, reuse=True)
         except SweepError as exc:
             log.warning("ranking/report not made: %s", exc)
         except Exception as exc:  # noqa: BLE001 — a report bug must not fail a finished sweep
