@@ -172,7 +172,8 @@ def stop_if_nothing_to_do(config: DictConfig, task: dict, jobs: list[dict]) -> N
         if report.suffix.lower() != ".html":
             report = report / f"{name}-{sid[:8]}.html"  # maglev.study.ranking.report_name
     done = nothing_to_do(task["tracking"]["uri"], task["tracking"]["experiment"], sid,
-                         [config_hash(j) for j in jobs], bool(task["lab"]["enabled"]), ranking, report)
+                         [config_hash(j) for j in jobs], bool(task["lab"]["enabled"]), ranking, report,
+                         bool(task["tracking"]["reap"]))
     if done is None:
         return
     ranked = (f"; ranking run {done.ranking_run} ranked these {done.ranked} runs; report {done.report}"

@@ -8,7 +8,8 @@ without importing MLflow — whether the launch can stop at once: the sweep's la
 FINISHED model run of that sweep (its child, or another sweep's run it references), and, when
 the sweep is ranked, its ranking run is FINISHED, ranked exactly the runs the ranking would rank
 now (``tags.ranked_hash``, :meth:`maglev.study.ranking.Ranking.ranked_hash`) and its report
-file exists.  Anything else — a server store, an unknown schema, a config to run or to
+file exists, and no RUNNING run of the experiment was left by a dead process of this host (the usual
+path marks those KILLED).  Anything else — a server store, an unknown schema, a config to run or to
 reference, a missing report — answers None, and the sweep takes its usual path, which decides
 the same things with MLflow's API.
 """
@@ -16,6 +17,8 @@ the same things with MLflow's API.
 from __future__ import annotations
 
 import hashlib
+import os
+import socket
 import sqlite3
 from collections import defaultdict
 from dataclasses import dataclass
@@ -23,7 +26,7 @@ from pathlib import Path
 
 # the tags the decision reads, of the parent, its ranking run and the model runs
 TAGS = ("kind", "config_hash", "mlflow.parentRunId", "lab_logged", "ranking_run", "ranked_hash",
-        "compared_structure", "sweep_parent")
+        "compared_structure", "sweep_parent", "host", "pid")
 REF_PREFIX = "sweep_ref."  # maglev.study.claims.REF_PREFIX (a test checks they agree)
 SQLITE = "sqlite:///"  # maglev.study.tracking.sqlite_path's prefix: that module imports MLflow
 
@@ -44,11 +47,15 @@ models AS (
       EXISTS (SELECT 1 FROM tags h WHERE h.run_uuid = r.run_uuid AND h.key = 'config_hash' AND h.value IN ({hashes}))
       OR EXISTS (SELECT 1 FROM tags p WHERE p.run_uuid = r.run_uuid AND p.key = 'mlflow.parentRunId'
                  AND p.value IN parent)
-      OR EXISTS (SELECT 1 FROM tags f, parent WHERE f.run_uuid = r.run_uuid AND f.key = ? || parent.run_uuid)))
+      OR EXISTS (SELECT 1 FROM tags f, parent WHERE f.run_uuid = r.run_uuid AND f.key = ? || parent.run_uuid))),
+running AS (SELECT run_uuid FROM runs WHERE experiment_id IN (SELECT experiment_id FROM exp)
+            AND lifecycle_stage = 'active' AND status = 'RUNNING')
 SELECT r.run_uuid, r.status, r.start_time, r.experiment_id, t.key, t.value,
-       CASE WHEN r.run_uuid IN parent THEN 'parent' WHEN r.run_uuid IN ranking THEN 'ranking' ELSE 'model' END
+       CASE WHEN r.run_uuid IN parent THEN 'parent' WHEN r.run_uuid IN ranking THEN 'ranking'
+            WHEN r.run_uuid IN models THEN 'model' ELSE 'running' END
 FROM runs r JOIN tags t ON t.run_uuid = r.run_uuid
-WHERE r.lifecycle_stage = 'active' AND (r.run_uuid IN parent OR r.run_uuid IN ranking OR r.run_uuid IN models)
+WHERE r.lifecycle_stage = 'active'
+  AND (r.run_uuid IN parent OR r.run_uuid IN ranking OR r.run_uuid IN models OR r.run_uuid IN running)
   AND (t.key IN ({tags}) OR substr(t.key, 1, {ref_len}) = ?)
 """
 
@@ -118,17 +125,30 @@ def ranked_hash(run_ids: list[str], structure: str | None) -> str:
     return hashlib.sha1((" ".join(sorted(run_ids)) + f" {structure}").encode()).hexdigest()
 
 
+def stale(run: _Run) -> bool:
+    """A RUNNING run whose process on this host is gone (:func:`maglev.study.reap.stale`, which reads MLflow's
+    run objects)."""
+    from maglev.study.reap import _alive
+
+    pid = run.tags.get("pid", "")
+    return (run.status == "RUNNING" and run.tags.get("host") == socket.gethostname() and pid.isdigit()
+            and int(pid) != os.getpid() and not _alive(int(pid)))
+
+
 def nothing_to_do(uri: str, experiment: str, sid: str, hashes: list[str], lab: bool,
-                  ranking: dict | None, report: Path | None) -> Done | None:
+                  ranking: dict | None, report: Path | None, reap: bool = True) -> Done | None:
     """A :class:`Done` when relaunching the sweep ``sid`` would run, reference, log and rank nothing new;
     else None.  ``hashes``: every job's config hash; ``lab``: the sweep logs lab steps; ``ranking``: the
     ranking callback's settings (``structure``), None when the sweep is not ranked; ``report``: the file
-    the ranking callback writes."""
+    the ranking callback writes; ``reap``: stale RUNNING runs of the experiment are to be marked KILLED
+    (``tracking.reap``), which is work."""
     if not uri.startswith(SQLITE) or not hashes:
         return None
     db = Path(uri[len(SQLITE):])
     runs = read(db, experiment, sid, hashes)
     if not runs:
+        return None
+    if reap and any(stale(r) for r in runs if r.role == "running"):
         return None
     parents = [r for r in runs if r.role == "parent"]
     if len(parents) != 1 or parents[0].status != "FINISHED":

@@ -8,6 +8,7 @@ then changes one thing the decision depends on and checks which way the relaunch
 from __future__ import annotations
 
 import shutil
+import socket
 import subprocess
 import sys
 
@@ -91,7 +92,7 @@ def test_the_fast_answer_ranks_the_runs_the_ranking_ranks(store):
 
 
 def decision(store, *, hashes: list[str] | None = None, lab: bool = False, structure: str | None = None,
-             uri: str | None = None):
+             uri: str | None = None, reap: bool = True):
     """resume.nothing_to_do on the sweep in ``store`` (its own hashes unless given)."""
     from maglev.study.resume import nothing_to_do
 
@@ -100,7 +101,7 @@ def decision(store, *, hashes: list[str] | None = None, lab: bool = False, struc
     own = [r.data.tags["config_hash"] for r in runs if r.data.tags.get("kind") == "model"]
     report = next((store / "reports").glob("resume-*.html"), store / "reports" / "none.html")
     return nothing_to_do(uri or f"sqlite:///{store}/mlflow.db", "maglev", parent.data.tags["sweep_id"],
-                         own if hashes is None else hashes, lab, {"structure": structure}, report)
+                         own if hashes is None else hashes, lab, {"structure": structure}, report, reap)
 
 
 def test_anything_left_to_do_sends_the_relaunch_the_usual_way(store):
@@ -116,6 +117,13 @@ def test_anything_left_to_do_sends_the_relaunch_the_usual_way(store):
     assert decision(store) is None  # a launch that did not end
     client.set_terminated(parent, "FINISHED")
     assert decision(store) is not None
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    _, exp_id, _ = all_runs(store)
+    left = client.create_run(exp_id, run_name="left", tags={"host": socket.gethostname(), "pid": str(dead.pid)})
+    assert decision(store) is None  # a run left RUNNING by a dead process: the usual path marks it KILLED
+    assert decision(store, reap=False) is not None  # unless tracking.reap=false
+    client.set_terminated(left.info.run_id, "KILLED")
     next((store / "reports").glob("resume-*.html")).unlink()
     assert decision(store) is None  # no report to reuse
 
