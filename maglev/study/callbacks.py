@@ -33,12 +33,13 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study.config import StudyConfigError, check, task_config
+from maglev.study.config import StudyConfigError, check, config_hash, task_config
 from maglev.study.lazy import lazy_module
 
 # imported on first use: a relaunch with nothing to do (maglev.study.resume) ends before MLflow is imported
 claims = lazy_module("maglev.study.claims")
 datasets = lazy_module("maglev.study.datasets")
+progress = lazy_module("maglev.study.progress")
 render = lazy_module("maglev.study.render")
 tracking = lazy_module("maglev.study.tracking")
 
@@ -155,15 +156,17 @@ def ranking_settings(config: DictConfig) -> dict | None:
     return None
 
 
-def stop_if_nothing_to_do(config: DictConfig, task: dict, jobs: list[dict]) -> None:
-    """Raise :class:`NothingToDo` when every job's config is FINISHED in this sweep and its ranking and report
-    are those of these runs (:func:`maglev.study.resume.nothing_to_do`: one query, no MLflow import)."""
+def survey(config: DictConfig, task: dict, jobs: list[dict]):
+    """Read the store once before any job (:func:`maglev.study.resume.survey`; no MLflow import) and raise
+    :class:`NothingToDo` when every job's config is FINISHED in this sweep and its ranking and report are
+    those of these runs.  Otherwise returns how many of the jobs' configs have a FINISHED run (None: not
+    known)."""
     from maglev.paths import reports_dir
     from maglev.study.config import config_hash
-    from maglev.study.resume import nothing_to_do
+    from maglev.study.resume import survey as read_store
 
-    if not jobs or not all(j["study"]["skip_finished"] for j in jobs):
-        return
+    if not jobs:
+        return None
     sid, name = sweep_id(config, task), task["study"]["name"]
     ranking = ranking_settings(config)
     report = None
@@ -171,11 +174,12 @@ def stop_if_nothing_to_do(config: DictConfig, task: dict, jobs: list[dict]) -> N
         report = Path(ranking["report_dir"]) if ranking["report_dir"] else reports_dir()
         if report.suffix.lower() != ".html":
             report = report / f"{name}-{sid[:8]}.html"  # maglev.study.ranking.report_name
-    done = nothing_to_do(task["tracking"]["uri"], task["tracking"]["experiment"], sid,
-                         [config_hash(j) for j in jobs], bool(task["lab"]["enabled"]), ranking, report,
-                         bool(task["tracking"]["reap"]))
-    if done is None:
-        return
+    hashes = [config_hash(j) for j in jobs]
+    found = read_store(task["tracking"]["uri"], task["tracking"]["experiment"], sid, hashes,
+                       bool(task["lab"]["enabled"]), ranking, report, bool(task["tracking"]["reap"]))
+    done = found.done
+    if done is None or not all(j["study"]["skip_finished"] for j in jobs):
+        return found.finished
     ranked = (f"; ranking run {done.ranking_run} ranked these {done.ranked} runs; report {done.report}"
               if done.ranking_run else "")
     log.info("sweep %r: nothing to do: the %d configs of its %d jobs all have FINISHED runs under parent run "
@@ -201,17 +205,28 @@ class SweepCallback(Callback):
     def _start(self, config: DictConfig) -> None:
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
         task = task_config(config)
+        name = task["study"]["name"]
+        size = sweep_size(config)
+        log.info("sweep %r: %s jobs; checking their configs", name, size or "?")  # the first line, within seconds
         jobs = check_sweep(config)
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
-        stop_if_nothing_to_do(config, task, jobs)
-        datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
+        finished = survey(config, task, jobs)
+        if finished is not None:
+            configs = len({config_hash(j) for j in jobs})
+            skipping = all(j["study"]["skip_finished"] for j in jobs)
+            log.info("sweep %r: %d configs checked; %d to run, %d FINISHED already%s", name, configs,
+                     configs - finished if skipping else len(jobs), finished, " (skipped)" if skipping else "")
+        missing = datasets.missing_blas(jobs)
+        if missing:
+            log.info("estimating the best linear approximations of %s in the background (once; then cached); "
+                     "a run that needs one waits for it", ", ".join(ds["name"] for ds in missing))
+            datasets.prepare_blas(jobs, missing)  # while the store and the lab steps are made
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
             render.start()  # the renderer's process imports while the store and the lab steps are made
         client, exp_id = tracking.connect(task["tracking"])
         self.client, self.exp_id = client, exp_id
         sid = sweep_id(config, task)
         sweep_dir = Path(config.hydra.sweep.dir).resolve()
-        name = task["study"]["name"]
         self.lock = claims.sweep_lock_path(task["tracking"]["uri"], sweep_dir, sid)
         claims.acquire_sweep(self.lock, lambda holder: log.warning(
             "sweep %r is being run by %s; waiting for it to end (its finished configs are then skipped)",
@@ -237,14 +252,16 @@ class SweepCallback(Callback):
         sweep_dir.mkdir(parents=True, exist_ok=True)
         (sweep_dir / tracking.PARENT_FILE).write_text(self.parent)
         os.environ[tracking.PARENT_ENV] = self.parent
-        size = sweep_size(config)
         if size:
             os.environ[tracking.SIZE_ENV] = str(size)
         atexit.register(self._abort)
         log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
                  "new" if self.fresh else "resumed", task["tracking"]["uri"])
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
+            log.info("sweep %r: the lab steps (working region, rise time and Ts, output spectrum, alpha*) on its "
+                     "parent run", name)
             self._log_lab(task)
+        os.environ[progress.START_ENV] = str(time.time())  # the runs start: their ETA counts from here
 
     def _log_lab(self, task: dict) -> None:
         from maglev.study.lab import lab_steps
@@ -364,6 +381,7 @@ class RankingCallback(Callback):
         if parent is None:
             log.warning("ranking skipped: no parent run id in %s", config.hydra.sweep.dir)
             return
+        log.info("sweep %r: ranking its runs and writing the report", task["study"]["name"])
         try:
             rank_and_report(task["tracking"]["uri"], task["tracking"]["experiment"], parent,
                             self.structure, self.report_dir, reuse=True)

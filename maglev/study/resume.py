@@ -2,7 +2,7 @@
 
 Relaunching a finished sweep used to compose and launch every job only for each to find its
 config FINISHED, then rank the unchanged runs and rebuild the report (17–21 s on the 2-core
-machine).  :func:`nothing_to_do` answers from one SQL query on a local SQLite store — read-only,
+machine).  :func:`survey` answers from one SQL query on a local SQLite store — read-only,
 without importing MLflow — whether the launch can stop at once: the sweep's latest parent run
 (``tags.sweep_id``) is FINISHED with its lab steps logged, every job's config hash is held by a
 FINISHED model run of that sweep (its child, or another sweep's run it references), and, when
@@ -84,9 +84,9 @@ class _Run:
 
 def read(db: Path, experiment: str, sid: str, hashes: list[str]) -> list[_Run] | None:
     """The sweep's parent, its ranking run and the FINISHED model runs that matter to it, in one query
-    (None when the store cannot be read that way: missing, locked, another schema)."""
-    if not db.is_file():
-        return None
+    (none when there is no store yet; None when it cannot be read that way: locked, another schema)."""
+    if not db.exists():
+        return []
     query = QUERY.format(hashes=",".join("?" * len(hashes)), tags=",".join("?" * len(TAGS)),
                          ref_len=len(REF_PREFIX))
     args = [experiment, sid, *hashes, REF_PREFIX, *TAGS, REF_PREFIX]
@@ -135,17 +135,36 @@ def stale(run: _Run) -> bool:
             and int(pid) != os.getpid() and not _alive(int(pid)))
 
 
-def nothing_to_do(uri: str, experiment: str, sid: str, hashes: list[str], lab: bool,
-                  ranking: dict | None, report: Path | None, reap: bool = True) -> Done | None:
-    """A :class:`Done` when relaunching the sweep ``sid`` would run, reference, log and rank nothing new;
-    else None.  ``hashes``: every job's config hash; ``lab``: the sweep logs lab steps; ``ranking``: the
-    ranking callback's settings (``structure``), None when the sweep is not ranked; ``report``: the file
-    the ranking callback writes; ``reap``: stale RUNNING runs of the experiment are to be marked KILLED
+@dataclass(frozen=True)
+class Survey:
+    """What a launch finds before its jobs: :class:`Done` when it has nothing to do, and how many of its
+    configs have a FINISHED run already (of any sweep; None when the store was not read)."""
+
+    done: Done | None
+    finished: int | None
+
+
+def survey(uri: str, experiment: str, sid: str, hashes: list[str], lab: bool,
+           ranking: dict | None, report: Path | None, reap: bool = True) -> Survey:
+    """Read the store once (a local SQLite store; a server is not read here) and decide.
+
+    ``hashes``: every job's config hash; ``lab``: the sweep logs lab steps; ``ranking``: the ranking
+    callback's settings (``structure``), None when the sweep is not ranked; ``report``: the file the
+    ranking callback writes; ``reap``: stale RUNNING runs of the experiment are to be marked KILLED
     (``tracking.reap``), which is work."""
     if not uri.startswith(SQLITE) or not hashes:
-        return None
-    db = Path(uri[len(SQLITE):])
-    runs = read(db, experiment, sid, hashes)
+        return Survey(None, None)
+    runs = read(Path(uri[len(SQLITE):]), experiment, sid, hashes)
+    if runs is None:
+        return Survey(None, None)
+    finished = {r.tags.get("config_hash") for r in runs if r.role == "model"} & set(hashes)
+    return Survey(nothing_to_do(runs, hashes, lab, ranking, report, reap), len(finished))
+
+
+def nothing_to_do(runs: list[_Run], hashes: list[str], lab: bool, ranking: dict | None, report: Path | None,
+                  reap: bool = True) -> Done | None:
+    """A :class:`Done` when relaunching the sweep would run, reference, log and rank nothing new (``runs``:
+    :func:`read`'s answer; the rest as :func:`survey`'s); else None."""
     if not runs:
         return None
     if reap and any(stale(r) for r in runs if r.role == "running"):

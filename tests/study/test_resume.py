@@ -93,15 +93,15 @@ def test_the_fast_answer_ranks_the_runs_the_ranking_ranks(store):
 
 def decision(store, *, hashes: list[str] | None = None, lab: bool = False, structure: str | None = None,
              uri: str | None = None, reap: bool = True):
-    """resume.nothing_to_do on the sweep in ``store`` (its own hashes unless given)."""
-    from maglev.study.resume import nothing_to_do
+    """resume.survey's decision on the sweep in ``store`` (its own hashes unless given)."""
+    from maglev.study.resume import survey
 
     _, _, runs = all_runs(store)
     parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
     own = [r.data.tags["config_hash"] for r in runs if r.data.tags.get("kind") == "model"]
     report = next((store / "reports").glob("resume-*.html"), store / "reports" / "none.html")
-    return nothing_to_do(uri or f"sqlite:///{store}/mlflow.db", "maglev", parent.data.tags["sweep_id"],
-                         own if hashes is None else hashes, lab, {"structure": structure}, report, reap)
+    return survey(uri or f"sqlite:///{store}/mlflow.db", "maglev", parent.data.tags["sweep_id"],
+                  own if hashes is None else hashes, lab, {"structure": structure}, report, reap).done
 
 
 def test_anything_left_to_do_sends_the_relaunch_the_usual_way(store):
