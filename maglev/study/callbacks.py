@@ -109,32 +109,24 @@ def check_sweep(config: DictConfig) -> list[dict]:
     """Compose and :func:`~maglev.study.config.check` every job of the sweep; the first impossible one
     raises :class:`SweepRefused` naming the job and the key.  Returns the jobs' configs (plain, resolved).
 
-    Composing a job costs Hydra ≈ 0.2 s, so each distinct choice of config groups
-    (``dataset=…``, ``structure=…``) is composed once and plain value overrides
-    (``structure.order=3``) are applied to a copy, as composition would apply them.
+    On the basic launcher each job's config is composed here once for the whole launch
+    (:func:`maglev.study.compose.memoise`): the sweeper's validation and the launcher get copies.
     """
     from hydra.core.global_hydra import GlobalHydra
-    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from maglev.study.compose import memoise
 
     jobs = sweep_jobs(config)
     if not jobs or not GlobalHydra.instance().is_initialized():
         return []
     loader = GlobalHydra.instance().config_loader()
-    parser = OverridesParser.create()
-    composed: dict[tuple[str, ...], DictConfig] = {}
+    if str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
+        memoise(loader)
     checked: list[dict] = []
     for overrides in jobs:
-        parsed = parser.parse_overrides(list(overrides))
-        plain = [o for o in parsed if not (o.is_add() or o.is_delete() or o.is_force_add() or o.package
-                                           or loader.repository.group_exists(o.key_or_group))]
-        base = tuple(o.input_line for o in parsed if o not in plain)
         try:
-            if base not in composed:
-                full = loader.load_sweep_config(config, list(base))
-                composed[base] = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
-            cfg = composed[base].copy()
-            for o in plain:
-                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
+            full = loader.load_sweep_config(config, list(overrides))
+            cfg = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
             job = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True)
             check(job)
             checked.append(job)
