@@ -170,51 +170,67 @@ def launch_process(study: Path, store: Path) -> dict[str, float]:
     return {"wall": wall, "cpu": cpu, "first": first if first is not None else wall}
 
 
-def launch_times(studies: dict[str, Path], repeats: int) -> dict[str, dict[str, list[float]]]:
-    """For each checkout (name -> its study.py), taking turns: ``repeats`` default sweeps into fresh stores
-    (BLAs cached by a warm-up sweep first) and ``repeats`` relaunches of a finished one."""
+def launch_times(studies: dict[str, Path], repeats: int, sweeps: int) -> dict[str, dict[str, list[float]]]:
+    """For each checkout (name -> its study.py), taking turns: ``sweeps`` default sweeps into fresh stores
+    (BLAs cached by a warm-up sweep first, whose first line counts too) and ``repeats`` relaunches of a
+    finished one.  Each time is also printed to stderr as it is measured."""
     times = {name: {k: [] for k in ("sweep", "sweep_cpu", "first", "relaunch", "relaunch_cpu", "relaunch_first")}
              for name in studies}
+
+    def note(name: str, what: str, t: dict) -> None:
+        print(f"{name}: {what} {t['wall']:.1f} s wall, {t['cpu']:.1f} s CPU, first line {t['first']:.1f} s",
+              file=sys.stderr, flush=True)
+
     with tempfile.TemporaryDirectory(prefix="bench-launch-") as tmp:
         finished = {}
         for name, study in studies.items():  # warm-up: caches the BLAs; its store is the finished sweep
-            finished[name] = Path(tmp) / f"{name}-finished"
+            finished[name] = Path(tmp) / f"{name}-finished".replace(" ", "-")
             finished[name].mkdir()
-            launch_process(study, finished[name])
-        for i in range(repeats):
+            t = launch_process(study, finished[name])
+            times[name]["first"].append(t["first"])
+            note(name, "warm-up sweep", t)
+        for i in range(max(repeats, sweeps)):
             for name, study in studies.items():
-                store = Path(tmp) / f"{name}-{i}"
-                store.mkdir()
-                t = launch_process(study, store)
-                times[name]["sweep"].append(t["wall"])
-                times[name]["sweep_cpu"].append(t["cpu"])
-                times[name]["first"].append(t["first"])
-                shutil.rmtree(store)
+                if i < sweeps:
+                    store = Path(tmp) / f"{name}-{i}".replace(" ", "-")
+                    store.mkdir()
+                    t = launch_process(study, store)
+                    note(name, "default sweep", t)
+                    times[name]["sweep"].append(t["wall"])
+                    times[name]["sweep_cpu"].append(t["cpu"])
+                    times[name]["first"].append(t["first"])
+                    shutil.rmtree(store)
+                if i >= repeats:
+                    continue
                 t = launch_process(study, finished[name])
+                note(name, "relaunch", t)
                 times[name]["relaunch"].append(t["wall"])
                 times[name]["relaunch_cpu"].append(t["cpu"])
                 times[name]["relaunch_first"].append(t["first"])
     return times
 
 
-def launch_table(times: dict[str, dict[str, list[float]]], repeats: int) -> str:
-    """Markdown: medians per checkout, the ratio to the first checkout's (when two) and the target."""
+def launch_table(times: dict[str, dict[str, list[float]]]) -> str:
+    """Markdown: medians per checkout (how many measurements in the second column), the ratio of the second
+    checkout's to the first's (when two) and the target."""
     names = list(times)
     rows = [("relaunch of the finished default sweep, wall s", "relaunch", TARGET_RELAUNCH_S),
             ("relaunch, CPU s", "relaunch_cpu", None),
             ("default sweep with the BLAs cached, wall s", "sweep", TARGET_DEFAULT_S),
             ("default sweep, CPU s", "sweep_cpu", None),
             ("first line of the default sweep, s after the command", "first", TARGET_FIRST_LINE_S)]
-    head = "| median of " + f"{repeats} | " + " | ".join(names)
+    head = "| median | of | " + " | ".join(names)
     head += " | ratio |" if len(names) == 2 else " |"
-    lines = [head + " target |", "|---|" + "---|" * (len(names) + (len(names) == 2) + 1)]
+    lines = [head + " target |", "|---|---|" + "---|" * (len(names) + (len(names) == 2) + 1)]
     for label, key, target in rows:
+        if not all(times[n][key] for n in names):
+            continue
         med = [statistics.median(times[n][key]) for n in names]
         cells = [f"{m:.1f}" for m in med]
         if len(names) == 2:
             cells.append(f"{med[1] / med[0]:.2f}")
         verdict = "" if target is None else f"≤ {target:g} s: {'met' if med[-1] <= target else 'not met'}"
-        lines.append(f"| {label} | " + " | ".join(cells) + f" | {verdict} |")
+        lines.append(f"| {label} | {len(times[names[-1]][key])} | " + " | ".join(cells) + f" | {verdict} |")
     return "\n".join(lines) + "\n"
 
 
@@ -230,16 +246,20 @@ def main(argv: list[str] | None = None) -> int:
                    help="with --launch: another checkout (e.g. git archive of main) timed in turn with this one; "
                         "the table gives this one's medians over the baseline's")
     p.add_argument("--markdown", type=Path, metavar="FILE", help="with --launch: also write the table to FILE")
+    p.add_argument("--sweeps", type=int, metavar="N",
+                   help="with --launch: default sweeps into fresh stores (default: --repeats; each is ~30 s)")
     a = p.parse_args(argv)
     if a.launch:
         studies = {"this checkout": REPO / "study.py"}
         if a.baseline:
             studies = {"baseline": a.baseline.resolve() / "study.py", **studies}
         load = os.getloadavg()
-        times = launch_times(studies, a.repeats)
-        table = launch_table(times, a.repeats)
+        sweeps = a.repeats if a.sweeps is None else a.sweeps
+        times = launch_times(studies, a.repeats, sweeps)
+        table = launch_table(times)
         cores = os.cpu_count()
         note = (f"`python bench/study_overhead.py --launch --repeats {a.repeats}"
+                f"{f' --sweeps {sweeps}' if sweeps != a.repeats else ''}"
                 f"{' --baseline CHECKOUT' if a.baseline else ''}`: {cores} cores, load average "
                 f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after; single-threaded BLAS; the checkouts "
                 "take turns.\n")
