@@ -154,7 +154,6 @@ def survey(config: DictConfig, task: dict, jobs: list[dict]):
     those of these runs.  Otherwise returns how many of the jobs' configs have a FINISHED run (None: not
     known)."""
     from maglev.paths import reports_dir
-    from maglev.study.config import config_hash
     from maglev.study.resume import survey as read_store
 
     if not jobs:

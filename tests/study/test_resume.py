@@ -26,7 +26,9 @@ def swept(tmp_path_factory, migrated_db):
     """A finished, ranked sweep; tests copy it before they change it."""
     store = tmp_path_factory.mktemp("resume")
     shutil.copyfile(migrated_db, store / "mlflow.db")
-    launch(store, *SWEEP, rank=True)
+    with study_log() as lines:
+        launch(store, *SWEEP, rank=True)
+    (store / "first-launch.log").write_text("\n".join(lines))
     return store
 
 
@@ -71,6 +73,19 @@ def test_relaunch_of_a_finished_sweep_stops_before_any_job_and_changes_nothing(s
     assert f"ranking run {ranking[0]} ranked these 2 runs; report {report}" in line
     assert not [m for m in lines if m.startswith("skip")]  # no job was launched to find its config done
     assert snapshot(store) == before and report.stat().st_mtime_ns == written
+
+
+def test_a_launch_says_what_it_does_one_line_per_state_change(swept):
+    """The first line comes before any config is composed; then what is to run; one line per run with the jobs
+    left; the ranking.  Nothing else from the study's logger."""
+    lines = (swept / "first-launch.log").read_text().splitlines()
+    assert lines[0] == "sweep 'resume': 2 jobs; checking their configs"
+    assert lines[1] == "sweep 'resume': 2 configs checked; 2 to run, 0 FINISHED already (skipped)"
+    assert lines[2].startswith("sweep 'resume': parent run ") and lines[2].endswith("(new) in " + f"sqlite:///{swept}/mlflow.db")
+    assert lines[3].startswith("[1/2] arx 2-2-2 · binary_a025: val_fit ") and lines[3].endswith("; 1 job(s) left")
+    assert lines[4].startswith("[2/2] arx 3-3-2 · binary_a025: val_fit ") and lines[4].endswith("; the last job")
+    assert lines[5] == "sweep 'resume': ranking its runs and writing the report"
+    assert lines[6].startswith("sweep done: 2 FINISHED under parent run ") and len(lines) == 7
 
 
 def test_the_fast_answer_ranks_the_runs_the_ranking_ranks(store):
