@@ -109,10 +109,14 @@ def check_sweep(config: DictConfig) -> list[dict]:
     """Compose and :func:`~maglev.study.config.check` every job of the sweep; the first impossible one
     raises :class:`SweepRefused` naming the job and the key.  Returns the jobs' configs (plain, resolved).
 
-    On the basic launcher each job's config is composed here once for the whole launch
-    (:func:`maglev.study.compose.memoise`): the sweeper's validation and the launcher get copies.
+    Composing a job costs Hydra ≈ 0.1 s of CPU, so each distinct choice of config groups
+    (``dataset=…``, ``structure=…``) is composed once and plain value overrides
+    (``structure.order=3``) are applied to a copy, as composition would apply them: a relaunch with
+    nothing to do stops after these.  On the basic launcher the sweeper's validation then composes each
+    job once for the launcher as well (:func:`maglev.study.compose.memoise`).
     """
     from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
 
     from maglev.study.compose import memoise
 
@@ -120,19 +124,29 @@ def check_sweep(config: DictConfig) -> list[dict]:
     if not jobs or not GlobalHydra.instance().is_initialized():
         return []
     loader = GlobalHydra.instance().config_loader()
-    if str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
-        memoise(loader)
+    parser = OverridesParser.create()
+    composed: dict[tuple[str, ...], DictConfig] = {}
     checked: list[dict] = []
     for overrides in jobs:
+        parsed = parser.parse_overrides(list(overrides))
+        plain = [o for o in parsed if not (o.is_add() or o.is_delete() or o.is_force_add() or o.package
+                                           or loader.repository.group_exists(o.key_or_group))]
+        base = tuple(o.input_line for o in parsed if o not in plain)
         try:
-            full = loader.load_sweep_config(config, list(overrides))
-            cfg = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
+            if base not in composed:
+                full = loader.load_sweep_config(config, list(base))
+                composed[base] = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
+            cfg = composed[base].copy()
+            for o in plain:
+                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
             job = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True)
             check(job)
             checked.append(job)
         except StudyConfigError as exc:
             shown = " ".join(o for o in overrides if not o.lstrip("+~").startswith(("tracking", "hydra")))
             raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
+    if str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
+        memoise(loader)
     return checked
 
 
