@@ -59,8 +59,8 @@ from maglev.study.config import config_hash, flatten  # noqa: E402
 from maglev.study.figures import RUN_DPI, png, run_figures  # noqa: E402
 from maglev.study.identify import identify, run_label  # noqa: E402
 
-TARGET_BEYOND_S = 0.3  # issue 12: per-run time beyond estimation (median)
-TARGET_SWEEP_S = 30.0  # issue 12: the default lab sweep on the 2-core machine
+TARGET_BEYOND_S = 0.3  # target: per-run time beyond estimation (median)
+TARGET_SWEEP_S = 30.0  # target: the default lab sweep on the 2-core machine
 
 
 def config(structure: str, uri: str, art: str) -> dict:

@@ -12,6 +12,7 @@ variable at fault.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -23,6 +24,13 @@ MIN_SAMPLES = 10
 
 def _as_vector(values, what: str, source: str) -> np.ndarray:
     """Return ``values`` as a 1-D float64 array, or say clearly why it cannot be one."""
+    if isinstance(values, np.ma.MaskedArray):
+        masked = np.flatnonzero(np.ma.getmaskarray(values))
+        if masked.size:
+            raise ValueError(f"{source}: {what} is a masked array with {masked.size} masked value(s), first at "
+                             f"index {int(masked[0])}; expected plain numbers (drop those samples, or fill them "
+                             "with .filled(value) if that value is what was measured)")
+        values = np.ma.getdata(values)
     arr = np.asarray(values)
     if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
         raise ValueError(f"{source}: {what} must be numeric, got dtype {arr.dtype}")
@@ -124,9 +132,9 @@ class IOData:
         ``Ts`` is read from the file's ``Ts`` variable unless given; a file without one
         needs ``Ts=`` (the lab's ``binary_signal_1`` has none).
         """
-        from scipy.io import loadmat
+        from scipy.io import loadmat, whosmat
 
-        path = Path(path)
+        path = _file_path(path, "IOData.from_mat")
         if not path.is_file():
             raise ValueError(f"{path}: no such file")
         try:
@@ -152,6 +160,10 @@ class IOData:
             ts_arr = np.asarray(content["Ts"]).reshape(-1)
             if ts_arr.size != 1:
                 raise ValueError(f"{path}: variable 'Ts' must be a scalar, got shape {content['Ts'].shape}")
+            kind = dict((var, cls) for var, _, cls in whosmat(path)).get("Ts")  # loadmat reads a logical as uint8
+            if kind in ("logical", "char") or not np.issubdtype(ts_arr.dtype, np.number):
+                raise ValueError(f"{path}: variable 'Ts' is {kind or ts_arr.dtype} ({ts_arr[0].item()!r}); expected the "
+                                 "sampling period in seconds as a number")
             Ts = float(ts_arr[0])
         label = name or path.stem
         return cls(
@@ -180,7 +192,7 @@ class IOData:
         """
         import pandas as pd
 
-        path = Path(path)
+        path = _file_path(path, "IOData.from_csv")
         if not path.is_file():
             raise ValueError(f"{path}: no such file")
         try:
@@ -288,7 +300,7 @@ class IOData:
         the new Nyquist frequency is kept.
         """
         src = self.name or "IOData"
-        if not isinstance(k, (int, np.integer)) or k < 1:
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or k < 1:
             raise ValueError(f"{src}: decimation factor must be a positive integer, got {k!r}")
         if k == 1:
             return self
@@ -307,6 +319,13 @@ class IOData:
             "u_offset": self.u_offset,
             "y_offset": self.y_offset,
         }
+
+
+def _file_path(path, what: str) -> Path:
+    """``path`` as a Path, or a ValueError saying a file path was expected (an int is no path)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"{what}: path must be a file path (str or pathlib.Path), got {path!r}")
+    return Path(path)
 
 
 def _checked_ts(Ts, source: str) -> float:

@@ -55,3 +55,21 @@ def fit_initial_state(
     x, _, rank, _ = np.linalg.lstsq(phi, residual[:m], rcond=1e-10)
     correction[:m] = phi @ x
     return correction, int(rank)
+
+
+def fit_shifted_response(residual: np.ndarray, response: np.ndarray, n: int) -> np.ndarray:
+    """The combination of ``response`` delayed by 0 … n−1 samples closest to ``residual`` (least squares).
+
+    The errors of a k-step predictor depend on the model's n pre-sample values through one
+    response delayed by the value's index, so fitting the initial state is this problem,
+    whose size (N × n) does not depend on the horizon.
+    """
+    N = residual.size
+    n = min(n, N)
+    if n == 0:
+        return np.zeros_like(residual)
+    phi = np.zeros((N, n))
+    for i in range(n):
+        phi[i:, i] = response[: N - i]
+    x, *_ = np.linalg.lstsq(phi, residual, rcond=1e-10)
+    return phi @ x

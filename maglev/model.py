@@ -16,10 +16,11 @@ from dataclasses import asdict, dataclass, field
 from dataclasses import fields as dataclass_fields
 
 import numpy as np
+from scipy.signal import fftconvolve
 
 from .data import IOData
 from .fit import fit_percent
-from .initial_state import INITIAL_CONDITIONS, fit_initial_state
+from .initial_state import INITIAL_CONDITIONS, fit_initial_state, fit_shifted_response
 from .polynomials import filt, is_stable, polymul
 from .structures import PolySpec
 from .structures import get as get_structure
@@ -293,45 +294,66 @@ class PolyModel:
             y = y + filt(*self.H_polys, noise)
         return y
 
-    def predictor(self, horizon: int | float = 1) -> tuple[tuple, tuple]:
-        """Filters of the k-step predictor ŷ = Wu u + Wy y as ((num_u, den_u), (num_y, den_y)).
-
-        With H̄_k the first k impulse-response terms of H = C/(A D):
-        Wu = H̄_k D B / (C F) and Wy = 1 - H̄_k A D / C; ``inf`` gives simulation (Wy = 0).
-        """
-        k = _check_horizon(horizon)
-        if k == math.inf:
-            return self.G_polys, (np.array([0.0]), np.array([1.0]))
-        h_bar = filt(*self.H_polys, np.r_[1.0, np.zeros(k - 1)])
-        num_u = polymul(h_bar, self.D, self.B)
-        den_u = polymul(self.C, self.F)
-        ad = polymul(h_bar, self.A, self.D)
-        num_y = _sub(self.C, ad)
-        return (num_u, den_u), (num_y, self.C.copy())
-
     def predict(
         self,
         data: IOData,
         horizon: int | float = 1,
         initial_condition: str = "zero",
     ) -> np.ndarray:
-        """k-step-ahead prediction of ``data.y`` (``horizon=inf`` simulates).
+        """k-step-ahead prediction ŷ(t|t−k) of ``data.y``; a horizon of ``data.N`` or more (or ``inf``) simulates.
 
-        ``initial_condition="estimate"`` fits the initial state of the horizon-k
-        predictor ŷ = Wu u + Wy y (every state of both filters, numerator included) by
-        least squares of the k-step prediction error, as MATLAB's ``compare`` and
-        ``predict`` do by default: they fit the initial state of the predictor model
-        that ``predict`` returns, whose free responses are these.  For ARX (any C·F = 1)
-        that frees the pre-sample outputs and inputs, so the first
-        max(na, nb+nk−1) + k − 1 predictions equal the data and the rest use measured
-        data only.  For ``horizon=inf`` the free response of G = B/(A F) is fitted to
-        the simulation error (for ARX: the na pre-sample outputs and nb+nk−1 pre-sample
-        inputs).
+        The k-step prediction error is H̄_k ε: the one-step errors ε = D/C (A y − B/F u)
+        filtered by the first k impulse-response terms of H = C/(A D) (Ljung 1999, §3.2),
+        computed in O(N) memory for any k (a horizon of N samples or more is simulation).
+
+        ``initial_condition="estimate"`` (or ``"backcast"``/``"auto"``) fits the model's
+        initial state by least squares of the k-step errors, as MATLAB's ``compare`` and
+        ``predict`` do: the n = max(deg A·F·D, deg B·D, deg C·F) pre-sample values of the
+        difference equation A F D y = B D u + C F e, whatever k (for ARX the pre-sample
+        outputs and inputs, n = max(na, nb+nk−1)).  So the first n one-step errors vanish,
+        and the k-step errors tend to the simulation errors as k grows: the true model's
+        k-step FIT falls with k to its simulation FIT (a model far from the plant may dip
+        below its simulation FIT at intermediate horizons).
+        Simulation fits the free response of G = B/(A F) to the simulation error (for ARX
+        the na pre-sample outputs and nb+nk−1 pre-sample inputs).
         """
-        (nu, du), (ny, dy) = self.predictor(horizon)
-        self._check_predictor_stable(horizon, initial_condition, du, dy)
-        yhat = filt(nu, du, data.u) + filt(ny, dy, data.y)
-        return yhat + self._initial_correction(data.y - yhat, [(nu, du), (ny, dy)], initial_condition)
+        if not isinstance(data, IOData):
+            raise TypeError(f"predict: data must be an IOData, got {type(data).__name__}")
+        if not math.isclose(data.Ts, self.Ts, rel_tol=1e-9):
+            raise ValueError(f"predict: data {data.name or ''} has Ts = {data.Ts:g} s but {self.name or self.label} "
+                             f"has Ts = {self.Ts:g} s; expected the same sampling period")
+        k = _check_horizon(horizon)
+        if initial_condition not in INITIAL_CONDITIONS:
+            raise ValueError(f"predict: initial_condition must be one of {INITIAL_CONDITIONS}, "
+                             f"got {initial_condition!r}")
+        if k >= data.N:
+            return self._simulation(data, initial_condition)
+        return data.y - self._k_step_errors(data, int(k), initial_condition)
+
+    def _simulation(self, data: IOData, initial_condition: str) -> np.ndarray:
+        """G u, plus the free response of G that best explains the data unless ``initial_condition="zero"``."""
+        num, den = self.G_polys
+        self._check_predictor_stable(math.inf, initial_condition, den)
+        ysim = filt(num, den, data.u)
+        if initial_condition == "zero":
+            return ysim
+        correction, _ = fit_initial_state(data.y - ysim, [(num, den)], initial_condition)
+        return ysim + correction
+
+    def _k_step_errors(self, data: IOData, k: int, initial_condition: str) -> np.ndarray:
+        """y − ŷ(t|t−k) = H̄_k ε, with the n pre-sample values of the model fitted unless ``"zero"``."""
+        CF, AD = polymul(self.C, self.F), polymul(self.A, self.D)
+        self._check_predictor_stable(k, initial_condition, CF)
+        N = data.N
+        eps = filt(AD, self.C, data.y) - filt(polymul(self.D, self.B), CF, data.u)
+        h = filt(self.C, AD, _impulse(k))  # H̄_k: the first k impulse-response terms of H
+        errors = _truncated_convolution(h, eps)
+        if initial_condition == "zero":
+            return errors
+        # A pre-sample value s_i enters C F ε like an impulse at sample i: ε gets −q⁻ⁱ/(C F) δ
+        n = max(AD.size + self.F.size - 2, self.D.size + self.B.size - 2, CF.size - 1)
+        response = _truncated_convolution(h, filt(np.ones(1), CF, _impulse(N)))
+        return errors - fit_shifted_response(errors, response, n)
 
     def _check_predictor_stable(self, horizon, initial_condition: str, *dens: np.ndarray) -> None:
         """Refuse predictions that would diverge: an unstable C·F (k-step), or an unstable
@@ -352,16 +374,6 @@ class PolyModel:
     def residuals(self, data: IOData, initial_condition: str = "zero") -> np.ndarray:
         """One-step prediction errors e = D/C (A y - B/F u)."""
         return data.y - self.predict(data, 1, initial_condition)
-
-    def _initial_correction(self, residual, filters, initial_condition: str) -> np.ndarray:
-        if initial_condition not in INITIAL_CONDITIONS:
-            raise ValueError(
-                f"initial_condition must be one of {INITIAL_CONDITIONS}, got {initial_condition!r}"
-            )
-        if initial_condition == "zero":
-            return np.zeros_like(residual)
-        correction, _ = fit_initial_state(residual, filters, initial_condition)
-        return correction
 
     # ------------------------------------------------------------------ (de)serialisation
     def to_dict(self) -> dict:
@@ -436,7 +448,18 @@ class PolyModel:
 
     @classmethod
     def from_json(cls, text: str) -> "PolyModel":
-        return cls.from_dict(json.loads(text))
+        """The model :meth:`to_json` wrote; text that is no JSON, or nested too deep to read, is refused in one line."""
+        if not isinstance(text, (str, bytes, bytearray)):
+            raise ValueError(f"PolyModel.from_json: expected the JSON text of a model (str), got {type(text).__name__}")
+        try:
+            content = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"PolyModel.from_json: not JSON ({exc.msg} at line {exc.lineno} column {exc.colno}); "
+                             "expected the text PolyModel.to_json writes") from None
+        except RecursionError:
+            raise ValueError("PolyModel.from_json: the JSON is nested too deeply to be a model; "
+                             "expected the text PolyModel.to_json writes") from None
+        return cls.from_dict(content)
 
     # ------------------------------------------------------------------ display
     def summary(self) -> str:
@@ -510,19 +533,27 @@ def _matrix(values, key: str) -> np.ndarray:
 
 
 def _check_horizon(horizon) -> int | float:
-    if horizon == math.inf or horizon is None:
+    """A prediction horizon as an int ≥ 1 or ``inf`` (``None`` too is simulation), or a ValueError naming it."""
+    if horizon is None:
         return math.inf
-    if isinstance(horizon, (bool, np.bool_)) or not float(horizon).is_integer() or horizon < 1:
+    if isinstance(horizon, (bool, np.bool_)) or not isinstance(horizon, (int, float, np.integer, np.floating)) \
+            or not (horizon == math.inf or (float(horizon).is_integer() and horizon >= 1)):
         raise ValueError(f"prediction horizon must be a positive integer or inf, got {horizon!r}")
-    return int(horizon)
+    return math.inf if horizon == math.inf else int(horizon)
 
 
-def _sub(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    n = max(p.size, q.size)
+def _impulse(n: int) -> np.ndarray:
+    """δ: one followed by n − 1 zeros."""
     out = np.zeros(n)
-    out[: p.size] += p
-    out[: q.size] -= q
+    out[0] = 1.0
     return out
+
+
+def _truncated_convolution(h: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(h * x)(t) for t < len(x): direct for short ``h``, by FFT for long ones (O(N log N), O(N) memory)."""
+    if h.size == 1:
+        return h[0] * x
+    return fftconvolve(x, h)[: x.size] if h.size > 64 else np.convolve(x, h)[: x.size]
 
 
 def _tf_z(num: np.ndarray, den: np.ndarray, Ts: float, name: str, ct):

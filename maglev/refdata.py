@@ -13,7 +13,7 @@ from pathlib import Path
 from maglev.data import IOData
 from maglev.paths import refdata_dir
 
-__all__ = ["KTH_2022", "RECORDS", "load_record"]
+__all__ = ["KTH_2022", "RECORDS", "DESIGN_ALPHA", "load_record"]
 
 KTH_2022 = "el2820_maglev_2022"
 # record name -> (input variable, output variable, Ts if the file lacks it)
@@ -26,6 +26,9 @@ RECORDS: dict[str, tuple[str, str, float | None]] = {
     "white_noise_3": ("u", "y", None),
     "white_noise_4": ("u", "y", None),
 }
+# the binary records' design switching probability α (the set's datasets.xlsx; 9 and 10 hold a constant input)
+DESIGN_ALPHA: dict[str, float] = {f"binary_signal_{i}": a for i, a in
+                                  enumerate((0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 0.0, 0.0), start=1)}
 
 
 def load_record(name: str, root: Path | None = None) -> IOData:

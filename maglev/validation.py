@@ -2,10 +2,11 @@
 
 The lab ranks models by the one-step-ahead FIT on validation data,
 FIT = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), and checks residual whiteness and independence
-from the input (``resid``).  ``compare`` and ``resid`` follow MATLAB: the initial
-state of the predictor is fitted to the data by least squares unless told otherwise
-(every predictor state; for ARX the pre-sample outputs and inputs are free, so the
-first max(na, nb+nk−1) + k − 1 k-step residuals vanish — see ``PolyModel.predict``).
+from the input (``resid``).  ``compare`` and ``resid`` follow MATLAB: the model's
+initial state is fitted to the data by least squares unless told otherwise (for ARX
+the pre-sample outputs and inputs, so the first max(na, nb+nk−1) one-step residuals
+vanish); a longer horizon fits the same number of values, so the k-step FIT tends
+to the simulation FIT — see ``PolyModel.predict``.
 """
 
 from __future__ import annotations

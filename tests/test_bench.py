@@ -17,6 +17,7 @@ BENCH = Path(__file__).resolve().parents[1] / "bench"
     ("estimators.py", ["--quick", "--no-peers", "--reps", "1"], "target"),
     ("study_overhead.py", ["--repeats", "1", "--structures", "arx"], "beyond estimation: at most"),
     ("simulator.py", ["--repeats", "1"], "Levitator.simulate"),
+    ("prediction.py", ["--samples", "200", "--repeats", "1"], "worst:"),
 ])
 def test_benchmark_script_runs(tmp_path, monkeypatch, capsys, script, args, expect):
     spec = importlib.util.spec_from_file_location(f"bench_{Path(script).stem}", BENCH / script)

@@ -25,7 +25,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "maglev"
 HEAVY = ("hydra", "omegaconf", "mlflow")
 NO_PLOTTING = ("maglev.estimation", "maglev.model", "maglev.validation", "maglev.initial_state", "maglev.data",
-               "maglev.polynomials", "maglev.structures", "maglev.uncertainty", "maglev.fit")
+               "maglev.polynomials", "maglev.structures", "maglev.uncertainty", "maglev.fit", "maglev.spectral")
 
 
 def module_names() -> dict[str, Path]:

@@ -148,11 +148,11 @@ def test_models_and_records_compare_by_value():
 
 
 def test_unstable_predictor_is_refused_not_nan():
-    m = PolyModel(A=[1, -0.5], B=[0, 1.0], C=[1, 1.5], D=[1], F=[1], nk=1, Ts=1.0, name="bad")
+    m = PolyModel(A=[1, -0.5], B=[0, 1.0], C=[1, 1.5], D=[1], F=[1], nk=1, Ts=1e-3, name="bad")
     data = simulate("arx", 500, 0)
     with pytest.raises(ValueError, match=r"bad: C\(q\)·F\(q\) has a root outside the unit circle \(\|root\| = 1.5\)"):
         m.predict(data, 1)
-    unstable_g = PolyModel(A=[1, -1.2], B=[0, 1.0], C=[1], D=[1], F=[1], nk=1, Ts=1.0)
+    unstable_g = PolyModel(A=[1, -1.2], B=[0, 1.0], C=[1], D=[1], F=[1], nk=1, Ts=1e-3)
     assert np.all(np.isfinite(unstable_g.predict(data, math.inf, "zero")))  # diverging but defined
     with pytest.raises(ValueError, match="simulation is unstable"):
         unstable_g.predict(data, math.inf, "estimate")

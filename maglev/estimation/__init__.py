@@ -8,6 +8,6 @@ one-step prediction error in :mod:`.prediction_error`; where it starts from in
 in :mod:`.selection`.
 """
 
-from .estimators import armax, arx, bj, estimate, oe, pem
+from .estimators import ExcitationWarning, armax, arx, bj, estimate, oe, pem
 
-__all__ = ["armax", "arx", "bj", "estimate", "oe", "pem"]
+__all__ = ["ExcitationWarning", "armax", "arx", "bj", "estimate", "oe", "pem"]

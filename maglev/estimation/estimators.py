@@ -36,6 +36,10 @@ noise variance is λ̂ = N·V/(N−d) and the covariance λ̂ (JᵀJ)⁻¹.
 
 from __future__ import annotations
 
+import math
+import warnings
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..data import IOData
@@ -61,16 +65,19 @@ def arx(data: IOData, na: int, nb: int, nk: int, initial_condition: str = "auto"
 @single_threaded_blas
 def _least_squares(data: IOData, spec: PolySpec, initial_condition: str) -> PolyModel:
     """A structure with only A and B free (ARX and its special cases) by linear least squares."""
+    _check_scale(data)
     y, u = _checked(data, spec, initial_condition)
+    y, u, scale = _normalised(spec, y, u)
     first = {"auto": spec.na, "zero": 0}.get(initial_condition, spec.max_lag)
     phi, target = regression(y, u, spec, first)
     r, qty = triangular_factor(phi, target)
     theta = solve_regression(r, qty, data.name)
     e = np.zeros(y.size)  # the first residuals vanish: their pre-sample data are free
     e[first:] = target - phi @ theta
+    theta, e, r = scale.restore(theta, e, r)
     A, B, *_ = spec.polys(theta)
     report = FitReport.from_residuals(
-        e, y, spec.n_params, first,
+        e, data.y, spec.n_params, first,
         method="least squares", iterations=0, termination="exact solution",
         initial_condition=ARX_AUTO if initial_condition == "auto" else initial_condition,
     )
@@ -125,7 +132,6 @@ def estimate(data: IOData, structure: str, orders, initial_condition: str = "aut
     (:mod:`maglev.estimation.starts`).
     """
     spec = PolySpec.from_orders(structure, orders)
-    _check_scale(data)
     if get_structure(structure).least_squares:
         if init is not None:
             raise ValueError(f"{structure} is solved exactly by least squares; init applies to "
@@ -160,14 +166,21 @@ def _checked(data: IOData, spec: PolySpec, initial_condition: str) -> tuple[np.n
                 f"{src}: input u is constant (= {data.u[0]:g}); it does not excite the system, "
                 "so no input-output model can be identified"
             )
-        order = spec.nb + spec.nf
-        level = _excitation_level(data.u, order)
-        if level < 1e-9:
-            raise ValueError(
-                f"{src}: input u is not persistently exciting of order {order} (needed by {spec.label}); "
-                f"its lag covariance is singular (relative eigenvalue {level:.1e})"
-            )
+        _check_excitation(data.u, spec, src)
     return data.y, data.u
+
+
+def _checked_init(spec: PolySpec, init):
+    """A warm start that is a PolyModel or numbers; anything else (a string, a dict) is named as such."""
+    if isinstance(init, PolyModel):
+        return init
+    try:
+        if isinstance(init, (str, bytes, dict)):
+            raise TypeError
+        return np.asarray(init, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{spec.label}: init must be a PolyModel or a vector of its {spec.n_params} parameters "
+                         f"[a b c d f], got {init!r}") from None
 
 
 MAX_RMS = 1e100  # the data's squares and their sums over N samples stay far inside float64 (1e±308)
@@ -188,21 +201,84 @@ def _check_scale(data: IOData) -> None:
     if not isinstance(data, IOData):
         return  # _checked says so
     for what, x in (("input u", data.u), ("output y", data.y)):
-        rms = float(np.sqrt(np.mean(np.square(x / max(np.max(np.abs(x)), 1e-300))))) * float(np.max(np.abs(x)))
+        rms = _rms(x)
         if rms > MAX_RMS or 0 < rms < 1 / MAX_RMS:
             raise ValueError(f"{data.name or 'data'}: {what} has RMS {rms:.1e}; estimation squares the data, which "
                              f"over- or underflows beyond RMS 1e±100 — rescale it (other units)")
 
 
-def _excitation_level(u: np.ndarray, order: int) -> float:
-    """Smallest over largest eigenvalue of the Gram matrix of ``order`` lagged copies of u."""
+@dataclass(frozen=True)
+class _Scale:
+    """Estimation runs on u/su and y/sy (about their RMS), so its tolerances and rank tests see numbers
+    near 1 whatever the units; only B (by sy/su) and the residuals (by sy) carry the scales back."""
+
+    theta: np.ndarray  # parameter k of the data's model = theta[k] × parameter k of the scaled data's
+    sy: float
+
+    def scaled(self, theta: np.ndarray) -> np.ndarray:
+        return theta / self.theta
+
+    def restore(self, theta: np.ndarray, e: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Parameters, residuals and the triangular factor of ∂e/∂θ of the unscaled data."""
+        return theta * self.theta, e * self.sy, r * (self.sy / self.theta)[None, :]
+
+
+def _normalised(spec: PolySpec, y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, _Scale]:
+    """y and u divided by the power of two nearest their RMS (1 for an all-zero signal), and how to undo it.
+
+    A power of two changes no digit: estimation on data whose RMS is near 1 gives the same numbers
+    as without the scaling, bit for bit, and the scales are carried back exactly."""
+    sy, su = (2.0 ** round(math.log2(rms)) if rms > 0 else 1.0 for rms in (_rms(y), _rms(u)))
+    theta = np.ones(spec.n_params)
+    theta[spec.na : spec.na + spec.nb] = sy / su
+    return y / sy, u / su, _Scale(theta, sy)
+
+
+def _rms(x: np.ndarray) -> float:
+    """Root mean square, without squaring overflow: max|x| · RMS(x / max|x|)."""
+    peak = float(np.max(np.abs(x)))
+    return peak * float(np.sqrt(np.mean(np.square(x / peak)))) if peak > 0 else 0.0
+
+
+POOR_CONDITIONING = 1e6  # condition number of the input's lag matrix above which the estimate is flagged
+
+
+def _check_excitation(u: np.ndarray, spec: PolySpec, src: str) -> None:
+    """Refuse an input that is not persistently exciting of order nb + nf; warn when it barely is.
+
+    The test is the numerical rank of the N × (nb + nf) matrix of lagged copies of u (mean removed):
+    a singular value below max(N, order) · eps times the largest is rounding, so such an input
+    determines fewer than nb + nf coefficients (two sinusoids span 4 lag directions, 5 with a
+    mean left over by a non-integer number of periods).  An input that excites more directions
+    but nearly collinearly — an oversampled band-limited multisine: rank 8 with condition number
+    ≈ 1e7 — is estimated, with a warning, since least squares by QR loses only that condition
+    number's digits, not its square.
+    """
+    order = spec.nb + spec.nf
     x = u - u.mean()
     n = x.size - order + 1
     lags = np.column_stack([x[order - 1 - k : order - 1 - k + n] for k in range(order)])
-    eig = np.linalg.eigvalsh(lags.T @ lags)
-    if eig[-1] <= 0:
-        return 0.0
-    return float(max(eig[0], 0.0) / eig[-1])
+    sv = np.linalg.svd(lags, compute_uv=False)
+    relative = sv / sv[0]
+    rank = int(np.sum(relative > max(lags.shape) * np.finfo(float).eps))
+    if rank < order:
+        raise ValueError(
+            f"{src}: input u is not persistently exciting of order {order} (needed by {spec.label}): its "
+            f"{order} lagged copies span only {rank} directions (singular values relative to the largest "
+            f"down to {relative[-1]:.1e}, rank tolerance {max(lags.shape) * np.finfo(float).eps:.1e}); "
+            f"use a richer input or orders with nb + nf <= {rank}"
+        )
+    if relative[-1] * POOR_CONDITIONING < 1:
+        warnings.warn(
+            f"{src}: input u is poorly conditioned for order {order} ({spec.label}): its lag matrix has "
+            f"condition number {1 / relative[-1]:.1e}, so the coefficients are sensitive to noise "
+            "(an oversampled or band-limited input); the estimate may still predict well",
+            ExcitationWarning, stacklevel=4,
+        )
+
+
+class ExcitationWarning(UserWarning):
+    """The input excites the model's orders only through a poorly conditioned lag matrix."""
 
 
 # ---------------------------------------------------------------------------- PEM driver
@@ -218,7 +294,8 @@ def _pem(
     _check_options(max_iterations, tolerance)
     _check_scale(data)
     y, u = _checked(data, spec, initial_condition)
-    candidates = [nested_theta(spec, init)] if init is not None else []
+    y, u, scale = _normalised(spec, y, u)
+    candidates = [scale.scaled(nested_theta(spec, _checked_init(spec, init)))] if init is not None else []
     candidates += starts(spec, y, u)
     fit_states = _wants_states(spec, candidates, y, u, initial_condition)
     more = None if init is not None else lambda: more_starts(spec, y, u, fit_states, max_iterations, tolerance)
@@ -227,13 +304,14 @@ def _pem(
     mode = initial_condition
     if initial_condition == "auto":
         mode = "auto→backcast" if fit_states else "auto→zero"
+    theta, e, r = scale.restore(ev.theta, ev.e, best.r_factor)
     report = FitReport.from_residuals(  # fitted states count in d, backcast too (as in MATLAB)
-        ev.e, y, spec.n_params, ev.n_initial,
+        e, data.y, spec.n_params, ev.n_initial,
         method="prediction-error minimisation (Levenberg-Marquardt)",
         iterations=best.iterations, termination=best.termination, initial_condition=mode,
     )
-    A, B, C, D, F = spec.polys(ev.theta)
-    return _model(spec, A, B, C, D, F, data, ev.e, best.r_factor, report)
+    A, B, C, D, F = spec.polys(theta)
+    return _model(spec, A, B, C, D, F, data, e, r, report)
 
 
 def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condition: str) -> bool:

@@ -68,12 +68,20 @@ def arxstruc(
                 continue
             for nk in nks if nb else nks[:1]:  # nk means nothing without an input path
                 cols = list(range(na)) + [na_max + nk - nk_min + j for j in range(nb)]
-                theta, *_ = np.linalg.lstsq(phi_e[:, cols], y_e, rcond=None)
+                theta = _lstsq_scaled(phi_e[:, cols], y_e)
                 err = y_v - phi_v[:, cols] @ theta
                 rows.append((na, nb, nk, float(err @ err) / err.size, na + nb, est.N))
     if not rows:
         raise ValueError("arxstruc: every combination has na = nb = 0; expected at least one parameter")
     return pd.DataFrame(rows, columns=list(TABLE_COLUMNS))
+
+
+def _lstsq_scaled(phi: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Least squares with unit-norm columns, so the rank cut-off does not depend on the units of u and y."""
+    norms = np.linalg.norm(phi, axis=0)
+    norms[norms == 0] = 1.0
+    theta, *_ = np.linalg.lstsq(phi / norms, target, rcond=None)
+    return theta / norms
 
 
 def selstruc(table: pd.DataFrame, criterion: str | float = "aic") -> tuple[int, int, int]:

@@ -23,9 +23,8 @@ is a property of the deterministic plant and the input class.  Results are cache
 memory and on disk (``$MAGLEV_CACHE`` or ``~/.cache/maglev``) under a hash of
 everything that determines them.
 
-:func:`frequency_response` is the same estimator on one measured record (MATLAB's
-``spa``-style Welch estimate), with its standard error from the coherence and the
-number of averaged segments.
+The estimator on one measured record, and the study's preprocessing, are the
+identification layer's (:mod:`maglev.spectral`): a BLA is their average over realisations.
 """
 
 from __future__ import annotations
@@ -40,19 +39,18 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
 
 from maglev.data import IOData
 from maglev.locks import exclusive
+from maglev.spectral import FrequencyResponse, Preprocess, segment_length, spectra
 from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.sim.plant import Levitator, rig
 
-__all__ = ["Preprocess", "FrequencyResponse", "BLA", "bla", "blas", "frequency_response", "weighted_distance",
-           "relative_distance", "record_distance", "validation_records", "is_cached", "SEGMENT_S",
-           "RECORD_SEGMENT_S", "REALISATIONS"]
+__all__ = ["BLA", "bla", "blas", "weighted_distance", "relative_distance", "record_distance", "validation_records",
+           "is_cached", "SEGMENT_S", "REALISATIONS"]
 
 VERSION = 2  # bump when the estimator changes: old disk-cache entries are then ignored
-# The defaults make the BLA accurate enough to rank models 0.1-0.2 from it (docs/simulator.md, "Choices"):
+# The defaults make the BLA accurate enough to rank models 0.1-0.2 from it (docs/decisions/0004-bla-distance.md):
 # on the lab's uniform 1.75-2.5 A class the BLA falls from 0.56 to 0.44 cm/A over the first 1 Hz, and
 # 2 s Hann segments (0.5 Hz apart) smooth that roll-off (DC gain 0.527 against 0.555-0.561 from 4-16 s
 # segments); with M = 16 the estimate is also 0.054 (relative, Φu-weighted) from one with M = 256.
@@ -65,115 +63,11 @@ REALISATIONS = 256  # default M: ≈ 15 s for a 24 s class (2-core machine, 2026
 # 256 records of 24 s take 13 s instead of 72 s; 16 take 10 s instead of 4.5 s (numpy's cost per operation;
 # the same day and machine)
 BATCH_FROM = 64
-RECORD_SEGMENT_S = 2.0  # s per segment of one record's estimate (frequency_response): ≥ 10 averages on 22 s
 SEED0 = 2 ** 20  # realisation m uses seed SEED0 + m: far from the seeds datasets use
 RECORDS = 64  # validation-like records record_distance averages over (its Monte-Carlo error: ≈ 1-3 % of it)
 RECORD_SEED0 = 2 ** 21  # record k uses seed RECORD_SEED0 + k: neither a dataset's seed nor a realisation's
-_HANN_OVERLAP_RHO = 0.1667  # correlation of Hann segments overlapping by 50 % (Welch 1967)
 
 System = Callable[[np.ndarray, int], np.ndarray]  # (command samples, seed) -> noise-free output
-
-
-@dataclass(frozen=True)
-class Preprocess:
-    """The study's preprocessing, applied in this order: trim, detrend, decimate."""
-
-    trim: int = 2000  # samples dropped at the start (the start-up transient)
-    detrend: bool = True  # remove the means of u and y
-    decimate: int = 1  # keep every k-th sample after the anti-aliasing filter
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.trim, (int, np.integer)) or self.trim < 0:
-            raise ValueError(f"Preprocess.trim must be an integer >= 0, got {self.trim!r}")
-        if not isinstance(self.decimate, (int, np.integer)) or self.decimate < 1:
-            raise ValueError(f"Preprocess.decimate must be an integer >= 1, got {self.decimate!r}")
-
-    def apply(self, data: IOData) -> IOData:
-        data = data.trim(int(self.trim)) if self.trim else data
-        data = data.detrend() if self.detrend else data
-        return data.decimate(int(self.decimate))
-
-
-@dataclass(frozen=True)
-class FrequencyResponse:
-    """A nonparametric frequency response Ĝ(e^{jωTs}) = Σ S_yu / Σ S_uu and what it rests on.
-
-    Spectra are one-sided Welch densities per Hz (so Σ S·df is the signal's power,
-    ``df = w[1] / 2π``).  ``std`` is the RMS error sqrt(E|Ĝ - G|²) of the complex
-    estimate (the magnitude's and the phase's standard errors are ≈ std/√2 and
-    std/(√2|G|)); ``coherence`` is |S_yu|² / (S_uu S_yy).
-    """
-
-    w: np.ndarray  # rad/s on the time base of the (preprocessed) data, 0 .. π/Ts
-    G: np.ndarray  # complex frequency response
-    std: np.ndarray  # RMS error of G
-    coherence: np.ndarray
-    Suu: np.ndarray  # input PSD [u²/Hz]
-    Syy: np.ndarray  # output PSD [y²/Hz]
-    Ts: float  # s, sampling period of the preprocessed data
-    averages: int  # Welch segments averaged (over all records)
-
-    @property
-    def df(self) -> float:
-        return float(self.w[1] / (2 * math.pi))
-
-    @property
-    def magnitude_db(self) -> np.ndarray:
-        return 20 * np.log10(np.abs(self.G))
-
-    def band_rms(self, lo: float, hi: float) -> tuple[float, float]:
-        """(coherent, incoherent) rms of the output over ``lo <= w < hi`` rad/s.
-
-        sqrt(Σ γ² S_yy df) is the part of y the input explains linearly (|S_yu|² / S_uu: the
-        output of the estimated G), sqrt(Σ (1 - γ²) S_yy df) the rest (noise, nonlinear
-        distortion); their squares add up to the band's output power.  Why: two records
-        with the same output std can differ in how much of it the input drives; on the rig's
-        ``white_noise_2`` most of the output is incoherent, while the simulator's replay of
-        the same input is mostly coherent.
-
-        Each Welch bin stands for ``df`` around its frequency (the DC bin for half of it),
-        so the band is resolved to the bins whose frequency lies in it.  The segments' leakage
-        leaves a small incoherent floor even without noise: a few % of the coherent rms for a
-        response that decays in ≈ 25 ms, with 1 s segments.  Raises ValueError unless
-        0 <= lo < hi and the band holds at least one bin.
-        """
-        if not 0.0 <= lo < hi:
-            raise ValueError(f"band_rms needs 0 <= lo < hi rad/s, got lo={lo!r}, hi={hi!r}")
-        inside = (self.w >= lo) & (self.w < hi)
-        if not inside.any():
-            raise ValueError(f"band {lo!r} <= w < {hi!r} rad/s holds none of the estimate's frequencies "
-                             f"(0 .. {self.w[-1]:g} rad/s, {2 * math.pi * self.df:g} apart)")
-        coh = np.clip(self.coherence[inside], 0.0, 1.0)
-        power = self.Syy[inside] * self.df
-        return float(math.sqrt(np.sum(coh * power))), float(math.sqrt(np.sum((1.0 - coh) * power)))
-
-    def bounds(self, level: float = 0.99, name: str | None = None) -> "FrequencyBounds":
-        """The estimate with pointwise bounds at ``level`` (ω > 0), for :func:`maglev.plots.plot_bode`.
-
-        The complex error is taken as circular: the magnitude's standard error is std/√2 and
-        the phase's std/(√2 |G|) (in degrees).
-        """
-        from maglev.uncertainty import FrequencyBounds, multiplier
-
-        keep = self.w > 0
-        sd_mag = self.std[keep] / math.sqrt(2.0)
-        k, coverage = multiplier(level)
-        return FrequencyBounds(w=self.w[keep], response=self.G[keep], sd_magnitude=sd_mag,
-                               sd_phase=np.degrees(sd_mag / np.abs(self.G[keep])), k=k, level=coverage, name=name)
-
-    def simulate(self, u: np.ndarray) -> np.ndarray:
-        """G u as a frequency-domain (two-sided FIR) filter: the inverse FFT of G on the Welch grid.
-
-        The impulse response has one segment's length, centred on lag 0 (the estimate
-        leaks a little into negative lags, which are kept so the filter is exactly G on
-        the grid); the first and last half segment of the output lack part of their past
-        or future input.
-        """
-        n = 2 * (self.w.size - 1)
-        g = np.fft.irfft(self.G, n=n)
-        two_sided = np.r_[g[n // 2:], g[: n // 2]]  # lags -n/2 .. n/2 - 1
-        full = signal.fftconvolve(np.asarray(u, dtype=float), two_sided)
-        return full[n // 2: n // 2 + len(u)]
 
 
 @dataclass(frozen=True)
@@ -203,43 +97,6 @@ class BLA(FrequencyResponse):
 
 
 # ---------------------------------------------------------------------- estimation
-def _spectra(data: IOData, nperseg: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """(f [Hz], S_uu, S_yy, S_yu, segments) of one record, Hann windows overlapping by half."""
-    if data.N < nperseg:
-        raise ValueError(f"{data.name or 'record'}: {data.N} samples are fewer than one Welch segment "
-                         f"({nperseg}); use a longer record or a shorter segment")
-    kw = dict(fs=1.0 / data.Ts, window="hann", nperseg=nperseg, noverlap=nperseg // 2, detrend=False)
-    f, suu = signal.welch(data.u, **kw)
-    _, syy = signal.welch(data.y, **kw)
-    _, syu = signal.csd(data.u, data.y, **kw)  # conj(U) Y: S_yu in the convention G = S_yu / S_uu
-    return f, suu, syy, syu, 1 + (data.N - nperseg) // (nperseg // 2)
-
-
-def _segment(Ts: float, segment_s: float) -> int:
-    n = int(round(segment_s / Ts))
-    return n + n % 2
-
-
-def _effective(segments: int) -> float:
-    """Independent averages equivalent to ``segments`` Hann segments overlapping by half."""
-    return segments / (1 + 2 * _HANN_OVERLAP_RHO ** 2)
-
-
-def frequency_response(data: IOData, segment_s: float = RECORD_SEGMENT_S) -> FrequencyResponse:
-    """Welch (``spa``-style) frequency-response estimate of one record, as it is (preprocess it first).
-
-    Standard error from the coherence and the number of averaged segments n
-    (Bendat & Piersol): sqrt(E|Ĝ - G|²) = |Ĝ| sqrt((1 - γ²) / (γ² n)), with n the
-    segments' equivalent number of independent averages.
-    """
-    f, suu, syy, syu, k = _spectra(data, _segment(data.Ts, segment_s))
-    coh = np.abs(syu) ** 2 / np.maximum(suu * syy, np.finfo(float).tiny)
-    G = syu / suu
-    std = np.abs(G) * np.sqrt((1 - coh) / (np.maximum(coh, 1e-12) * _effective(k)))
-    return FrequencyResponse(w=2 * np.pi * f, G=G, std=std, coherence=coh, Suu=suu, Syy=syy, Ts=data.Ts,
-                             averages=k)
-
-
 def _one_by_one(system: System, inputs: np.ndarray) -> list[np.ndarray]:
     """``system``'s output to each realisation (row of ``inputs``), realisation m with seed ``SEED0 + m``."""
     return [system(u, SEED0 + m) for m, u in enumerate(inputs)]
@@ -266,8 +123,8 @@ def _estimate(spec: ExperimentSpec, inputs: np.ndarray, outputs: np.ndarray | li
                for u, y in zip(inputs, outputs)]
     # at most half a record: var(y_s) is measured on what the BLA filter's reach (half a segment at each end) leaves
     half_record = records[0].N // 2
-    nperseg = min(_segment(records[0].Ts, segment_s), half_record - half_record % 2)
-    per = [_spectra(d, nperseg) for d in records]
+    nperseg = min(segment_length(records[0].Ts, segment_s), half_record - half_record % 2)
+    per = [spectra(d, nperseg) for d in records]
     f = per[0][0]
     suu_m, syy_m, syu_m = (np.array([p[i] for p in per]) for i in (1, 2, 3))
     suu, syy, syu = suu_m.sum(0), syy_m.sum(0), syu_m.sum(0)

@@ -16,17 +16,12 @@ simulated-vs-real comparison of :mod:`maglev.sim.sim_vs_real`:
 3. dynamics (``fit_friction``): the damping law of both bushings (in motion, while the
    input is quiet for its class, on aged contacts) and their Coulomb friction, the physical
    time per sample and the sensor's stretch above its knee (its pole and knee), by
-   Nelder-Mead on the log-parameters against the checks the calibration must pass
-   (``friction_errors``): ωn and ζ of the modes identified from binary_signal_1..4 and
-   white_noise_4 within 20 % (same settings for real and simulated records) and the
-   staircase's rise time within 25 %, with the static curve held within its tolerance;
-   and issue 15's checks: ARMAX [4 4 4 1] modes of binary_signal_2 (15 % / 30 %), output
-   stds of seven records within [0.8, 1.25] of the real ones, the α .25 / white-noise
-   std ratio within 25 %, and the frequency response within 3 dB where coherent.
-   Not run by default (``--friction-evals``): the default plant meets the first group and
-   issue 15's on the default seed, and a local polish from it changes no verdict (docs/simulator.md).
-   The repulsion law's c and d (d = 10 cm, c for the same gap at 2.75 A) came from the
-   fifth attempt's search, with the static curve refitted (fit 1).
+   Nelder-Mead on the log-parameters against the checks of :data:`maglev.sim.checks.CHECKS`
+   the calibration scores (``friction_errors``), with the static curve and every output std
+   held near their targets by penalties. Not run by default (``--friction-evals``): the default
+   plant meets every check on the default seed, and a local polish from it changes no verdict.
+
+``--markdown PATH`` writes the comparison's checks as a Markdown page (docs/validation.md).
 
 The real data are read in place (:mod:`maglev.refdata`), never copied.
 """
@@ -37,37 +32,36 @@ import argparse
 import math
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from scipy import optimize, signal
 
-from maglev.sim import bla
+from maglev.sim import checks
 from maglev.data import IOData
+from maglev.sim.checks import (ARMAX_RECORD, POLE_RECORDS, STATIC_NOISE_MULTIPLE, STD_RECORDS,
+                               WHITE_RECORD)
 from maglev.sim.plant import DEFAULT_PLANT, PLANTS, Levitator, rig
 from maglev.refdata import load_record, refdata_dir
-from maglev.sim.sim_vs_real import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_COHERENCE,
-                                    FRF_TOLERANCE_DB,
-                                    MODE_TOLERANCE, POLE_RECORDS, RATIO_TOLERANCE, RISE_TOLERANCE, STAIR_LEVELS,
-                                    STAIR_TAIL, STATIC_NOISE_MULTIPLE, STD_RECORDS, STD_TOLERANCE,
-                                    TRANSIENT_FRACTION, WHITE_RECORD, Comparison, FrfComparison, Mode,
-                                    armax_errors, armax_modes_of, compare, dominant_mode_of, fourth_order_modes_of,
-                                    least_damped, noise_psd, output_std, quantisation_step, record_frf,
-                                    stair_averages, stair_step, two_modes)
+from maglev.spectral import FrequencyResponse
+from maglev.lab.measures import (STAIR_LEVELS, STAIR_TAIL, TRANSIENT_FRACTION, Mode, armax_modes_of, dominant_mode_of,
+                                 fourth_order_modes_of, least_damped, noise_psd, output_std, quantisation_step,
+                                 stair_averages, stair_step, two_modes)
+from maglev.sim.sim_vs_real import FRF_COHERENCE, Comparison, FrfComparison, compare, record_frf
 
 __all__ = ["fit_static", "fit_simulated_static", "fit_noise", "fit_friction", "with_dynamics", "friction_targets",
-           "friction_errors", "friction_cost", "scored_cost", "main"]
+           "replay", "friction_errors", "friction_cost", "scored_cost", "main"]
 
 # parameters moved by fit_friction (all positive, fitted in log space): the bushings' damping law
-# (docs/simulator.md, fifth attempt) and the physical time per sample
+# (docs/decisions/0001-friction-law.md) and the physical time per sample
 FRICTION_PARAMS = ("gamma_lower", "gamma_upper", "gamma_quiet_lower", "gamma_quiet_upper", "quiet_level_lower",
                    "quiet_level_upper", "quiet_power_lower", "quiet_power_upper", "activity_fast_lower",
                    "activity_fast_upper", "activity_slow_lower", "activity_slow_upper", "activity_release",
                    "jitter_weight", "jitter_tau", "gamma_aged_lower", "gamma_aged_upper", "age_half", "slip_renewal",
                    "t_phys")
 SENSOR_MAP_PARAMS = ("sensor_pole", "sensor_knee")  # the laser's stretch above its knee, fitted with the damping
-DRY_FRICTION_PARAMS = ("coulomb_lower", "coulomb_upper")  # the bushings' set-valued Coulomb friction (ninth look)
+DRY_FRICTION_PARAMS = ("coulomb_lower", "coulomb_upper")  # the bushings' set-valued Coulomb friction
 DYNAMICS_PARAMS = FRICTION_PARAMS + SENSOR_MAP_PARAMS + DRY_FRICTION_PARAMS  # what fit_friction fits
 STATIC_PARAMS = ("a", "b", "n_coil", "kappa", "y_off", "i_sat")  # what fit_static fits
 SIMULATED_STATIC_EVALS = 40  # least-squares evaluations of fit_simulated_static in main
@@ -81,7 +75,7 @@ def fit_static(stair: IOData, base: Levitator) -> Levitator:
     The fit matches the equilibria (``static_curve``).  A bushing with dry friction holds its magnet short
     of them, so a plant with it simulates a staircase a little further off: 0.0066 cm rms (noise-free) with
     stick_slip's Coulomb levels, where stick_slip's own static parameters, fitted to the simulated
-    staircase, give 0.0051 cm (tolerance 0.0091; docs/simulator.md, ninth look); with stuck_stretched's
+    staircase, give 0.0051 cm (tolerance 0.0091); with stuck_stretched's
     stuck upper bushing 0.074 cm, so for a plant that sticks ``main`` fits :func:`fit_simulated_static` instead.
     """
     u_bar, y_bar = stair_averages(stair)
@@ -168,11 +162,11 @@ class FrictionTargets:
     static_tolerance: float  # cm, STATIC_NOISE_MULTIPLE x the sensor noise std at constant 3 A
     rise: float  # samples
     armax: tuple[Mode | None, Mode | None] = (None, None)  # ARMAX [4 4 4 1] modes of ARMAX_RECORD
-    frf: dict[str, bla.FrequencyResponse] | None = None  # FRF_RECORDS -> the real record's Welch estimate
+    frf: dict[str, FrequencyResponse] | None = None  # SCORED_FRF_RECORDS -> the real record's Welch estimate
 
 
-FRF_RECORDS = ("binary_signal_2", WHITE_RECORD)  # the frequency responses the fit scores (issue 15)
-MISSING_MODE_ERROR = 3.0  # tolerance-scaled error of an ARMAX mode the simulated record does not show
+SCORED_FRF_RECORDS = ("binary_signal_2", WHITE_RECORD)  # the frequency responses the fit scores
+MISSING_MODE_ERROR = 3.0  # tolerance-scaled error of a check the simulated record does not show (an ARMAX mode)
 
 
 def friction_targets(root: Path | None = None) -> FrictionTargets:
@@ -188,10 +182,7 @@ def friction_targets(root: Path | None = None) -> FrictionTargets:
         second_mode=least_damped(fourth_order_modes_of(inputs[WHITE_RECORD])),
         stair=stair, y_bar=stair_averages(stair)[1], static_tolerance=STATIC_NOISE_MULTIPLE * noise_std,
         rise=rise, armax=two_modes(armax_modes_of(inputs[ARMAX_RECORD])),
-        frf={r: record_frf(inputs[r]) for r in FRF_RECORDS})
-
-
-LEGACY_CHECKS = ("wn", "zeta", "rise time")  # key endings of the checks the defaults meet (issue 3)
+        frf={r: record_frf(inputs[r]) for r in SCORED_FRF_RECORDS})
 
 
 STD_FIT_FACTOR = 1.8  # output stds are penalised outside this factor of the real ones (checked: 2)
@@ -199,73 +190,83 @@ STATIC_FIT_SHARE = 0.8  # the static rms is penalised above this share of its to
 _NORM = 8  # the cost's norm of the relative errors: close to their maximum, but smooth
 
 
-def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple[dict[str, float], float]:
-    """Relative errors of the calibration's checks, each divided by its tolerance, and the penalties.
+@dataclass
+class Replay:
+    """The numbers :data:`maglev.sim.checks.CHECKS` read (:class:`~maglev.sim.checks.Measured`), from one replay
+    of the targets' records: what the calibration scores.  Where ``Comparison`` prints the BLA over several
+    realisations, ``frf`` holds the Welch estimate of the replayed record, one realisation of its class."""
 
-    Errors (1.0 = at the tolerance): ωn and ζ of the dominant OE(2,2,3) mode of each
-    binary record and of white_noise_4's second mode (``MODE_TOLERANCE``), and the
-    staircase's rise time (``RISE_TOLERANCE``); issue 15's: ``armax slow/fast wn/zeta``
-    (ARMAX [4 4 4 1] of ``ARMAX_RECORD``, a mode the simulation lacks counts
-    ``MISSING_MODE_ERROR``), ``std <record>`` (|log ratio| / log ``STD_TOLERANCE``),
-    ``std ratio`` (α .25 / white noise) and ``frf <record>`` (largest |dB| difference
-    where the real coherence >= ``FRF_COHERENCE``, over ``FRF_TOLERANCE_DB``; the
-    simulated estimate is the replayed record's, one realisation of the class, where
-    ``maglev.sim.sim_vs_real`` prints the BLA over several).  Penalties (0 when met): every
-    output std within ``STD_FIT_FACTOR`` of the real one and the static rms below
-    ``STATIC_FIT_SHARE`` of its tolerance; a mode that cannot be identified costs 10.
-    """
-    errors: dict[str, float] = {}
+    static_rms: float
+    static_tolerance: float
+    rise_real: float
+    rise_sim: float = math.nan
+    alpha_real: float = math.nan  # not scored
+    alpha_sim: float = math.nan
+    modes: dict[str, tuple[Mode, Mode]] = field(default_factory=dict)
+    white_noise_mode: tuple[Mode, Mode] | None = None
+    stds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    armax_pairs: tuple | None = None
+    frf: dict[str, FrfComparison] = field(default_factory=dict)
+
+
+def replay(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple[Replay, float]:
+    """The targets' records replayed through ``lev`` and measured as the checks need them, and the penalties
+    (0 when met): every output std within ``STD_FIT_FACTOR`` of the real one and the static rms below
+    ``STATIC_FIT_SHARE`` of its tolerance; a mode that cannot be identified, or a rise time the stair steps
+    never reach, costs 10 (and its check is left out)."""
     penalty = 0.0
-
-    def mode_errors(name: str, sim: Mode, real: Mode) -> None:
-        nonlocal penalty
-        if not all(math.isfinite(v) and v > 0 for v in sim):
-            penalty += 10.0
-            return
-        errors[f"{name} wn"] = abs(sim[0] / real[0] - 1) / MODE_TOLERANCE
-        errors[f"{name} zeta"] = abs(sim[1] / real[1] - 1) / MODE_TOLERANCE
-
-    sims = {}
-    for rec, real in tg.inputs.items():
-        sim = sims[rec] = lev.simulate(real.u, Ts=real.Ts, seed=seed)
-        ratio = max(output_std(sim), 1e-6) / tg.std[rec]
-        errors[f"std {rec}"] = abs(math.log(ratio)) / math.log(STD_TOLERANCE)
-        penalty += 100.0 * max(0.0, abs(math.log(ratio)) - math.log(STD_FIT_FACTOR)) ** 2
-        try:
-            if rec in tg.modes:
-                mode_errors(rec, dominant_mode_of(sim), tg.modes[rec])
-            if rec == WHITE_RECORD:
-                mode_errors(f"{rec} second", least_damped(fourth_order_modes_of(sim)), tg.second_mode)
-        except (ValueError, np.linalg.LinAlgError):  # no model for these parameters
-            penalty += 10.0
-    errors.update(_issue15_errors(sims, tg))
+    sims = {rec: lev.simulate(real.u, Ts=real.Ts, seed=seed) for rec, real in tg.inputs.items()}
     sim_stair = lev.simulate(tg.stair.u, Ts=tg.stair.Ts, seed=seed)
     rms = float(np.sqrt(np.mean((stair_averages(sim_stair)[1] - tg.y_bar) ** 2)))
     penalty += 100.0 * max(0.0, rms / (STATIC_FIT_SHARE * tg.static_tolerance) - 1.0) ** 2
+    out = Replay(static_rms=rms, static_tolerance=tg.static_tolerance, rise_real=tg.rise)
+    for rec, sim in sims.items():
+        std = output_std(sim)
+        out.stds[rec] = (tg.std[rec], std)
+        penalty += 100.0 * max(0.0, abs(math.log(max(std, 1e-6) / tg.std[rec])) - math.log(STD_FIT_FACTOR)) ** 2
+
+    def identified(mode: Mode) -> bool:
+        nonlocal penalty
+        ok = all(math.isfinite(v) and v > 0 for v in mode)
+        penalty += 0.0 if ok else 10.0
+        return ok
+
+    for rec, sim in sims.items():
+        try:
+            if rec in tg.modes and identified(mode := dominant_mode_of(sim)):
+                out.modes[rec] = (tg.modes[rec], mode)
+            if rec == WHITE_RECORD and identified(mode := least_damped(fourth_order_modes_of(sim))):
+                out.white_noise_mode = (tg.second_mode, mode)
+        except (ValueError, np.linalg.LinAlgError):  # no model for these parameters
+            penalty += 10.0
     try:
-        rise, _ = stair_step(sim_stair)
-        errors["rise time"] = abs(rise / tg.rise - 1) / RISE_TOLERANCE
+        sim_pair = two_modes(armax_modes_of(sims[ARMAX_RECORD]))
+    except (ValueError, np.linalg.LinAlgError):
+        sim_pair = (None, None)
+    out.armax_pairs = (tg.armax, sim_pair)
+    out.frf = {rec: FrfComparison(record=rec, real=real, sim=record_frf(sims[rec])) for rec, real in (tg.frf or {}).items()}
+    try:
+        out.rise_sim, _ = stair_step(sim_stair)
     except ValueError:  # the steps never reach 90 %
         penalty += 10.0
-    return errors, penalty
+    return out, penalty
 
 
-def _issue15_errors(sims: dict[str, IOData], tg: FrictionTargets) -> dict[str, float]:
-    """Tolerance-scaled errors of the std ratio, the ARMAX modes and the frequency responses."""
-    white, big = WHITE_RECORD, "binary_signal_2"
-    ratio_sim = output_std(sims[big]) / max(output_std(sims[white]), 1e-9)
-    errors = {"std ratio": abs(ratio_sim / (tg.std[big] / tg.std[white]) - 1) / RATIO_TOLERANCE}
-    try:
-        sim_modes = two_modes(armax_modes_of(sims[ARMAX_RECORD]))
-    except (ValueError, np.linalg.LinAlgError):
-        sim_modes = (None, None)
-    for key, err in armax_errors(sim_modes, tg.armax).items():
-        tol = ARMAX_WN_TOLERANCE if key.endswith("wn") else ARMAX_ZETA_TOLERANCE
-        errors[f"armax {key}"] = MISSING_MODE_ERROR if math.isnan(err) else abs(err) / tol
-    for rec, real in (tg.frf or {}).items():
-        gap = FrfComparison(record=rec, real=real, sim=record_frf(sims[rec])).max_db
-        errors[f"frf {rec}"] = MISSING_MODE_ERROR if math.isnan(gap) else gap / FRF_TOLERANCE_DB
-    return errors
+def friction_errors(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> tuple[dict[str, float], float]:
+    """The errors of every check the calibration scores (:data:`maglev.sim.checks.CHECKS`, ``scored``), each
+    divided by its tolerance (1.0 = at the tolerance), on one :func:`replay`, and the replay's penalties.
+
+    One entry per component: ``<check> wn`` and ``<check> zeta`` for a mode, ``<check>`` otherwise; a
+    component the simulated record does not show (nan: an ARMAX mode, no coherent FRF bin) counts
+    ``MISSING_MODE_ERROR``; a check the replay could not measure is left out (its penalty counts)."""
+    measured, penalty = replay(lev, tg, seed)
+    out = {}
+    for name, parts in checks.errors(measured, scored_only=True).items():
+        if name == "rise time" and math.isnan(measured.rise_sim):
+            continue
+        for part, err in parts.items():
+            out[f"{name} {part}".strip()] = MISSING_MODE_ERROR if math.isnan(err) else err
+    return out, penalty
 
 
 def friction_cost(lev: Levitator, tg: FrictionTargets, seed: int = 1) -> float:
@@ -309,7 +310,7 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
     times e^``step``; the mains line follows ``t_phys``, :func:`with_dynamics`);
     ``maxfev`` evaluations of 8 simulated records each (≈ 1 s per
     evaluation).  The objective is not smooth (identified modes jump), so this is a
-    local polish: the defaults came from chained longer runs (docs/simulator.md).
+    local polish: the named plants came from chained longer runs (their files' provenance).
     """
     bad = {k: getattr(base.params, k) for k in DYNAMICS_PARAMS if getattr(base.params, k) <= 0}
     if bad:
@@ -335,6 +336,36 @@ def fit_friction(base: Levitator, root: Path | None = None, *, maxfev: int = 60,
     optimize.minimize(cost, x0, method="Nelder-Mead",
                       options=dict(maxfev=maxfev, initial_simplex=simplex, xatol=1e-4, fatol=1e-5))
     return best[1]
+
+
+def validation_markdown(cmp: Comparison, plant: str, seed: int, refitted: bool = False) -> str:
+    """The comparison's checks as a Markdown page (``--markdown``; docs/validation.md): one row per check of
+    :data:`maglev.sim.checks.CHECKS` with the rig's and the simulator's numbers, the error in units of its
+    tolerance and the verdict, then what each check measures and why.  Every number is the comparison's."""
+    errors = checks.errors(cmp)
+    verdicts = checks.verdicts(cmp)
+    state = "refitted to the records by `maglev calibrate`" if refitted else "as it is"
+    command = f"maglev calibrate{'' if refitted else ' --no-fit'} --plant {plant} --seed {seed} --markdown PATH"
+    lines = ["# The simulator against the real records", "",
+             f"Written by `{command}`; do not edit by hand (a test checks that it is current). The plant "
+             f"`{plant}` ({state}) replays the inputs of the KTH EL2820 2022 records with noise seed {seed}, and "
+             "each check of `maglev/sim/checks.py` compares what the lab computes on the rig's record and on the "
+             "replay. Frequencies are in rad/s of the 1 ms label the records carry. The simulator's design and "
+             "its known gaps: [simulator.md](simulator.md).", "",
+             f"**{checks.verdict_line(cmp)}.**", "",
+             "| check | record | rig | simulator | error / tolerance | tolerance | within |",
+             "|---|---|---|---|---|---|---|"]
+    for check in checks.CHECKS:
+        if check.name not in errors:
+            continue
+        worst = max(errors[check.name].values(), key=lambda e: math.inf if math.isnan(e) else e)
+        scaled = "missing" if math.isnan(worst) else ("—" if math.isinf(worst) else f"{worst:.2f}")
+        rig_text, sim_text = check.shown(cmp)
+        lines.append(f"| {check.name} | `{check.record}` | {rig_text} | {sim_text} | {scaled} | {check.tolerance} | "
+                     f"{'yes' if verdicts[check.name] else '**no**'} |")
+    lines += ["", "## What each check measures, and why", "", "| check | what is measured | why |", "|---|---|---|"]
+    lines += [f"| {c.name} | {c.what} | {c.why} |" for c in checks.CHECKS if c.name in errors]
+    return "\n".join(lines) + "\n"
 
 
 def frf_figure(cmp: Comparison, path: Path) -> None:
@@ -403,6 +434,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--friction-evals", type=int, default=0,
                         help="Nelder-Mead evaluations of the friction fit from the plant (≈ 2 s each; "
                         "default 0: a local polish changes no verdict, docs/simulator.md)")
+    parser.add_argument("--markdown", type=Path, default=None,
+                        help="also write the checks as a Markdown page to this file (docs/validation.md)")
     args = parser.parse_args(argv)
     root = args.refdata or refdata_dir()
     if root is None:
@@ -428,6 +461,10 @@ def main(argv: list[str] | None = None) -> int:
     print(cmp.table())
     if args.out is not None:
         _save_figures(lev, root, args.out, cmp, args.seed)
+    if args.markdown is not None:
+        args.markdown.write_text(validation_markdown(cmp, args.plant, args.seed, refitted=not args.no_fit),
+                                 encoding="utf-8")
+        print(f"validation page written to {args.markdown}")
     return 0
 
 

@@ -19,24 +19,22 @@ Physics (lengths in cm, forces in N, ECP Model 730 force laws, see docs/simulato
   over its own jitter grades random binary α .25, α .5 and white noise apart, as the rig's
   damping does), plus ``gamma_aged`` on a contact that has rested (rate-and-state
   ageing: a step after a rest is damped more).  Small motions are heavily damped, large
-  ones lightly (the rig's amplitude dependence, notes §4.6; docs/simulator.md, fifth
-  attempt).  Dry friction (Coulomb + Stribeck, set-valued with ``v_creep = 0``, else
-  tanh-regularised over ``v_creep``): light Coulomb levels in ``LevitatorParams``' defaults
-  (``stick_slip``), the upper bushing stuck in the default plant (``DEFAULT_PLANT``,
-  ``stuck_stretched``);
+  ones lightly (the rig's amplitude dependence, notes §4.6; docs/decisions/0001-friction-law.md).
+  Dry friction (Coulomb + Stribeck, set-valued with ``v_creep = 0``, else
+  tanh-regularised over ``v_creep``): the upper bushing stuck in the default plant
+  (``DEFAULT_PLANT``), light Coulomb levels on both in ``stick_slip``;
 * the current regulator saturates at ``i_sat`` (≈ 4.06 A on the rig) and, as an
   option, the lab's logging quirk "command >= 10 A is written as 0 A";
 * a pure input delay; a laser reading ``y = y_off + h``, stretched above ``sensor_knee``
   (``Levitator.reading``), plus sensor noise (white +
   a narrow mains-ripple line) and a disturbance at each command switch, quantised to
   the ADC step; optional process (force) noise, white and, as an option, a slow wander that small
-  command steps drive (``Levitator.wander``, off in ``LevitatorParams``' defaults; the ``stuck_upper``
-  plant and the default plant ``stuck_stretched`` use it).
+  command steps drive (``Levitator.wander``; on in the default plant and ``stuck_upper``, off in the others).
 
 Time base.  One logged sample of the lab's records is labelled 1 ms but spans about
 6-7 ms of physical time (notes §5).  By default the simulator reproduces the
 records *as labelled*: each logged sample of length ``Ts`` integrates ``Ts * time_scale``
-of physics with ``time_scale = t_phys / 1 ms`` (5.985, fitted by ``maglev.sim.calibrate``
+of physics with ``time_scale = t_phys / 1 ms`` (about 6, fitted by ``maglev.sim.calibrate``
 together with the friction), so a 60 s-labelled record covers about 360 s of physics
 and the transients have the real records' length in samples.  With
 ``physical_time=True`` the simulator is physically honest (``Ts`` of physics per
@@ -46,16 +44,19 @@ sample), and its transients are about 6.4 times longer in samples.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+import tomllib
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
 
 import control as ct
 import numpy as np
 from scipy import optimize, signal
 
 from maglev.data import IOData
+from maglev.sim.forces import force_slopes, friction, magnet_forces, stribeck_level
 
 __all__ = ["LevitatorParams", "Equilibrium", "LinearModel", "Levitator", "PLANTS", "DEFAULT_PLANT", "rig",
-           "U_MIN", "U_MAX"]
+           "plant_file", "U_MIN", "U_MAX"]
 
 U_MIN, U_MAX = 0.0, 10.0  # the rig's allowed command range [A]
 LABEL_TS = 1e-3  # the sampling period the lab's records are labelled with [s]
@@ -68,71 +69,89 @@ WANDER_STEP_REF = 2.5 / 3  # A: mean |step| of white noise U(1.5, 4) A, the lab'
 _WANDER_STREAM = 15  # the wander's random stream beside the record's seed
 
 
+PLANTS_DIR = Path(__file__).resolve().parent / "plants"  # one TOML file per named plant (package data)
+DEFAULT_PLANT = "stuck_stretched"
+
+
+def plant_file(name: str) -> dict:
+    """The named plant's file as data: ``description``, ``provenance`` (fitted by which command, on which
+    records, which checks it passes) and ``params`` (every field of :class:`LevitatorParams`)."""
+    path = PLANTS_DIR / f"{name}.toml"
+    if not path.is_file():
+        known = sorted(f.stem for f in PLANTS_DIR.glob("*.toml"))
+        raise ValueError(f"plant must be one of {known}, got {name!r}")
+    with path.open("rb") as f:
+        return tomllib.load(f)
+
+
+_DEFAULT = plant_file(DEFAULT_PLANT)["params"]
+
+
 @dataclass(frozen=True)
 class LevitatorParams:
-    """Physical and sensor parameters.
+    """Physical and sensor parameters of the rig.
 
-    The field defaults are the ``stick_slip`` parameter set (fitted to the KTH 2022 records by
-    ``maglev.sim.calibrate``, the study's default plant until 2026-11-27). The study's default plant is
-    ``DEFAULT_PLANT`` (``rig()``), a named set of ``PLANTS`` over these fields."""
+    The field defaults are the default plant's (``DEFAULT_PLANT``, read from its file under
+    ``maglev/sim/plants/``), so ``Levitator()`` and ``rig()`` simulate the same physics; other named
+    plants are :data:`PLANTS`."""
 
-    m: float = 0.12  # kg, mass of each magnet
-    g: float = 9.81  # m/s^2
-    a: float = 0.30133397  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
-    b: float = 1.5406675  # cm, offset of the coil force law
-    n_coil: float = 1.3781672  # exponent of the coil force law
-    kappa: float = 0.14618686  # coil pull on the upper magnet relative to the push on the lower one
-    c: float = 1.130784e5  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
-    d: float = 10.0  # cm, offset of the repulsion law
+    m: float = _DEFAULT["m"]  # kg, mass of each magnet
+    g: float = _DEFAULT["g"]  # m/s^2
+    a: float = _DEFAULT["a"]  # A/(N cm^n): coil force Fc = I / (a (z + b)^n)
+    b: float = _DEFAULT["b"]  # cm, offset of the coil force law
+    n_coil: float = _DEFAULT["n_coil"]  # exponent of the coil force law
+    kappa: float = _DEFAULT["kappa"]  # coil pull on the upper magnet relative to the push on the lower one
+    c: float = _DEFAULT["c"]  # N cm^4, magnet repulsion Fm = c / (gap + d)^4
+    d: float = _DEFAULT["d"]  # cm, offset of the repulsion law
     # damping of each bushing [N s/m]: gamma in motion, plus gamma_quiet while the input is quiet
     # for its class, plus gamma_aged on a contact that has rested (docs/simulator.md, "Physics")
-    gamma_lower: float = 0.65507037  # N s/m, viscous friction of the lower magnet in motion
-    gamma_upper: float = 0.43521616  # N s/m, viscous friction of the upper magnet in motion
-    gamma_quiet_lower: float = 3.1551629  # N s/m, extra damping of the lower magnet while its activity is 0
-    gamma_quiet_upper: float = 5.424287  # N s/m, same for the upper magnet
-    quiet_level_lower: float = 0.11940606  # A, band-passed current at which the lower magnet's activity is 1
-    quiet_level_upper: float = 0.096609112  # A, same for the upper magnet
-    quiet_power_lower: float = 3.9102034  # gamma_quiet / (1 + activity^power): how sharply it fades
-    quiet_power_upper: float = 4.4297234
-    activity_fast_lower: float = 0.022208422  # s (physical), fast low pass of the current's band pass
-    activity_fast_upper: float = 0.017006167
-    activity_slow_lower: float = 0.33117527  # s (physical), slow low pass subtracted from it
-    activity_slow_upper: float = 0.38902922
-    activity_attack: float = 0.003  # s (physical), the activity envelope's rise
-    activity_release: float = 0.21675387  # s (physical), and its fall
-    jitter_weight: float = 1.2216867  # share of the current's jitter added to quiet_level (class, not range)
-    jitter_tau: float = 0.024123165  # s (physical), low pass of the current's |step| per sample (the jitter)
-    gamma_aged_lower: float = 1.5157536  # N s/m, extra damping of the lower bushing after a long rest
-    gamma_aged_upper: float = 1.6114445  # N s/m, same for the upper bushing
-    age_half: float = 0.20708156  # s (physical), contact age at which half of gamma_aged acts
-    slip_renewal: float = 0.10453168  # cm, slip that renews a contact (ageing law, backward Euler)
+    gamma_lower: float = _DEFAULT["gamma_lower"]  # N s/m, viscous friction of the lower magnet in motion
+    gamma_upper: float = _DEFAULT["gamma_upper"]  # N s/m, viscous friction of the upper magnet in motion
+    gamma_quiet_lower: float = _DEFAULT["gamma_quiet_lower"]  # N s/m, extra damping of the lower magnet while its activity is 0
+    gamma_quiet_upper: float = _DEFAULT["gamma_quiet_upper"]  # N s/m, same for the upper magnet
+    quiet_level_lower: float = _DEFAULT["quiet_level_lower"]  # A, band-passed current at which the lower magnet's activity is 1
+    quiet_level_upper: float = _DEFAULT["quiet_level_upper"]  # A, same for the upper magnet
+    quiet_power_lower: float = _DEFAULT["quiet_power_lower"]  # gamma_quiet / (1 + activity^power): how sharply it fades
+    quiet_power_upper: float = _DEFAULT["quiet_power_upper"]
+    activity_fast_lower: float = _DEFAULT["activity_fast_lower"]  # s (physical), fast low pass of the current's band pass
+    activity_fast_upper: float = _DEFAULT["activity_fast_upper"]
+    activity_slow_lower: float = _DEFAULT["activity_slow_lower"]  # s (physical), slow low pass subtracted from it
+    activity_slow_upper: float = _DEFAULT["activity_slow_upper"]
+    activity_attack: float = _DEFAULT["activity_attack"]  # s (physical), the activity envelope's rise
+    activity_release: float = _DEFAULT["activity_release"]  # s (physical), and its fall
+    jitter_weight: float = _DEFAULT["jitter_weight"]  # share of the current's jitter added to quiet_level (class, not range)
+    jitter_tau: float = _DEFAULT["jitter_tau"]  # s (physical), low pass of the current's |step| per sample (the jitter)
+    gamma_aged_lower: float = _DEFAULT["gamma_aged_lower"]  # N s/m, extra damping of the lower bushing after a long rest
+    gamma_aged_upper: float = _DEFAULT["gamma_aged_upper"]  # N s/m, same for the upper bushing
+    age_half: float = _DEFAULT["age_half"]  # s (physical), contact age at which half of gamma_aged acts
+    slip_renewal: float = _DEFAULT["slip_renewal"]  # cm, slip that renews a contact (ageing law, backward Euler)
     # dry friction: Coulomb level + Stribeck peak; set-valued (exact stick-slip) with v_creep = 0, as in the
-    # defaults (light Coulomb friction, no Stribeck peak), else with a tanh-regularised sign
-    coulomb_lower: float = 0.0029911694  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
-    coulomb_upper: float = 0.0014996732  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
-    stiction_lower: float = 0.0  # N, extra friction at low speed (Stribeck peak) on the lower magnet
-    stiction_upper: float = 0.0  # N, extra friction at low speed (Stribeck peak) on the upper magnet
-    v_stribeck: float = 1.316  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
-    v_creep: float = 0.0  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
-    h_top: float = 16.0  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
-    i_sat: float = 3.8507856  # A, current-regulator saturation
-    delay: float = 0.011127  # s (physical), pure input delay beyond the one-sample read-then-write lag
-    t_phys: float = 0.0059850447  # s of physics per logged sample labelled 1 ms
-    y_off: float = 0.34973543  # cm, reading y = y_off + h below the sensor's knee
-    sensor_knee: float = 8.6541226  # cm, height h above which the laser's scale stretches
-    sensor_pole: float = 16.833234  # cm, D: reading y = y_off + h + (h - sensor_knee)^2 / (D - h) above the knee (0: linear)
-    noise_std: float = 0.001814  # cm, std of the sensor noise before quantisation
-    noise_line_fraction: float = 0.8675  # share of the noise variance in the mains-ripple line
-    noise_line_hz: float = 114.08632  # Hz, ripple frequency (aliased by the logging rate)
-    noise_line_radius: float = 0.9198  # pole radius of the AR(2) line (its sharpness)
-    quant: float = 4.2561e-4  # cm, ADC step of the reading (0 = no quantisation)
-    force_noise: float = 2e-4  # N, std of a white force on the upper magnet (process noise)
+    # default plant (the upper bushing stuck, with a static peak), else with a tanh-regularised sign
+    coulomb_lower: float = _DEFAULT["coulomb_lower"]  # N, kinetic (Coulomb) dry friction of the lower magnet's bushing
+    coulomb_upper: float = _DEFAULT["coulomb_upper"]  # N, kinetic (Coulomb) dry friction of the upper magnet's bushing
+    stiction_lower: float = _DEFAULT["stiction_lower"]  # N, extra friction at low speed (Stribeck peak) on the lower magnet
+    stiction_upper: float = _DEFAULT["stiction_upper"]  # N, extra friction at low speed (Stribeck peak) on the upper magnet
+    v_stribeck: float = _DEFAULT["v_stribeck"]  # cm/s, speed over which the Stribeck peak decays, exp(-(v/v_stribeck)^2)
+    v_creep: float = _DEFAULT["v_creep"]  # cm/s, tanh regularisation of the friction's sign (0 = exact stick-slip)
+    h_top: float = _DEFAULT["h_top"]  # cm, top stop of the upper magnet: above the rig's highest free flight (docs/simulator.md)
+    i_sat: float = _DEFAULT["i_sat"]  # A, current-regulator saturation
+    delay: float = _DEFAULT["delay"]  # s (physical), pure input delay beyond the one-sample read-then-write lag
+    t_phys: float = _DEFAULT["t_phys"]  # s of physics per logged sample labelled 1 ms
+    y_off: float = _DEFAULT["y_off"]  # cm, reading y = y_off + h below the sensor's knee
+    sensor_knee: float = _DEFAULT["sensor_knee"]  # cm, height h above which the laser's scale stretches
+    sensor_pole: float = _DEFAULT["sensor_pole"]  # cm, D: reading y = y_off + h + (h - sensor_knee)^2 / (D - h) above the knee (0: linear)
+    noise_std: float = _DEFAULT["noise_std"]  # cm, std of the sensor noise before quantisation
+    noise_line_fraction: float = _DEFAULT["noise_line_fraction"]  # share of the noise variance in the mains-ripple line
+    noise_line_hz: float = _DEFAULT["noise_line_hz"]  # Hz, ripple frequency (aliased by the logging rate)
+    noise_line_radius: float = _DEFAULT["noise_line_radius"]  # pole radius of the AR(2) line (its sharpness)
+    quant: float = _DEFAULT["quant"]  # cm, ADC step of the reading (0 = no quantisation)
+    force_noise: float = _DEFAULT["force_noise"]  # N, std of a white force on the upper magnet (process noise)
     # a slow force on the upper magnet that small command steps drive (process noise, Levitator.wander; 0: off)
-    wander_force: float = 0.0  # N, its std while every step is small, with WANDER_STEP_REF as mean |step|
-    wander_tau: float = 1.0  # s (physical), its correlation time
-    wander_power: float = 1.0  # exponent of the share of small steps that scales it
-    switch_noise: float = 0.004773  # cm per A of command step: a reading disturbance at each switch
-    switch_noise_pole: float = 0.5  # its pole (per logged sample)
+    wander_force: float = _DEFAULT["wander_force"]  # N, its std while every step is small, with WANDER_STEP_REF as mean |step|
+    wander_tau: float = _DEFAULT["wander_tau"]  # s (physical), its correlation time
+    wander_power: float = _DEFAULT["wander_power"]  # exponent of the share of small steps that scales it
+    switch_noise: float = _DEFAULT["switch_noise"]  # cm per A of command step: a reading disturbance at each switch
+    switch_noise_pole: float = _DEFAULT["switch_noise_pole"]  # its pole (per logged sample)
 
     @property
     def sticks(self) -> bool:
@@ -270,33 +289,21 @@ class Levitator:
     # ------------------------------------------------------------------ statics
     def _upper_height(self, current: float, z: float) -> float:
         """Height h balancing the upper magnet above a lower magnet at z (ignoring the top stop)."""
-        p = self.params
-        w = p.m * p.g
-
-        def f(h: float) -> float:
-            return p.c / (h - z + p.d) ** 4 - p.kappa * current / (p.a * (h + p.b) ** p.n_coil) - w
-
-        return optimize.brentq(f, z, z + 1e3, xtol=1e-12)
+        forces = magnet_forces(self.params)
+        return optimize.brentq(lambda h: forces(current, z, h)[1], z, z + 1e3, xtol=1e-12)
 
     def equilibrium(self, u: float) -> Equilibrium:
-        """Solve the static force balance directly for constant command ``u`` [A]."""
+        """Solve the static force balance (:func:`~maglev.sim.forces.magnet_forces`) for constant command ``u`` [A]."""
         u_val = float(_checked_command(u, "u"))
         p = self.params
         current = float(self.current(u_val))
-        w = p.m * p.g
-
-        def coil(z: float) -> float:
-            return current / (p.a * (z + p.b) ** p.n_coil)
-
-        def repulsion(gap: float) -> float:
-            return p.c / (gap + p.d) ** 4
-
+        forces = magnet_forces(p)
         h0 = self._upper_height(current, 0.0)
-        if coil(0.0) <= repulsion(h0) + w:  # lower magnet stays seated
+        if forces(current, 0.0, h0)[0] <= 0.0:  # the coil cannot lift the lower magnet off its seat
             z, h, seated = 0.0, h0, True
         else:
             def lower(z_: float) -> float:
-                return coil(z_) - repulsion(self._upper_height(current, z_) - z_) - w
+                return forces(current, z_, self._upper_height(current, z_))[0]
 
             z_hi = 1.0
             while lower(z_hi) > 0:
@@ -307,8 +314,7 @@ class Levitator:
         if at_top:
             h = p.h_top
             if not seated:
-                z = optimize.brentq(lambda z_: coil(z_) - repulsion(p.h_top - z_) - w, 0.0, p.h_top,
-                                    xtol=1e-12)
+                z = optimize.brentq(lambda z_: forces(current, z_, p.h_top)[0], 0.0, p.h_top, xtol=1e-12)
         return Equilibrium(u=u_val, current=current, z=z, h=h, y=float(self.reading(h)),
                            lower_seated=seated, upper_at_top=at_top)
 
@@ -335,39 +341,35 @@ class Levitator:
         eq = self.equilibrium(u0)
         p = self.params
         k = _CM / p.m
-        cur, z, h = eq.current, eq.z, eq.h
-        gap = h - z
-        dfm = -4.0 * p.c / (gap + p.d) ** 5  # dFm/dgap
-        dfa_dh = -p.n_coil * p.kappa * cur / (p.a * (h + p.b) ** (p.n_coil + 1))
-        dfa_di = p.kappa / (p.a * (h + p.b) ** p.n_coil)
-        dfc_dz = -p.n_coil * cur / (p.a * (z + p.b) ** (p.n_coil + 1))
-        dfc_di = 1.0 / (p.a * (z + p.b) ** p.n_coil)
-        dy_dh = self.reading_slope(h)
+        # d(force on lower, on upper) / d(current, z, h), exact derivatives of the integrators' force law
+        (dl_di, dl_dz, dl_dh), (du_di, du_dz, du_dh) = force_slopes(p, eq.current, eq.z, eq.h)
+        dy_dh = self.reading_slope(eq.h)
         gain_u = 0.0 if (self.zero_at_10 and eq.u >= U_MAX) or not 0.0 < eq.u < p.i_sat else 1.0
         gl, gu = p.gamma_lower / p.m, p.gamma_upper / p.m
         if dry_friction:  # at rest: a quiet input and contacts aged without bound
             gl += (p.gamma_quiet_lower + p.gamma_aged_lower) / p.m
             gu += (p.gamma_quiet_upper + p.gamma_aged_upper) / p.m
-            if p.v_creep > 0:
-                gl += _CM * (p.coulomb_lower + p.stiction_lower) / (p.v_creep * p.m)
-                gu += _CM * (p.coulomb_upper + p.stiction_upper) / (p.v_creep * p.m)
+            if p.v_creep > 0:  # the smooth dry friction's slope at rest, (coulomb + stiction) / v_creep
+                ivs2, ivc = 1.0 / p.v_stribeck ** 2, 1.0 / p.v_creep
+                gl += k * friction(0.0, 0.0, p.coulomb_lower, p.stiction_lower, ivs2, ivc)[1]
+                gu += k * friction(0.0, 0.0, p.coulomb_upper, p.stiction_upper, ivs2, ivc)[1]
         if eq.upper_at_top:
             # the upper magnet is pressed against its stop: the reading cannot move
             A = np.array([[-1.0]])
             B = np.zeros((1, 1))
             C = np.zeros((1, 1))
         elif eq.lower_seated:
-            A = np.array([[0.0, 1.0], [k * (-dfa_dh + dfm), -gu]])
-            B = np.array([[0.0], [-k * dfa_di * gain_u]])
+            A = np.array([[0.0, 1.0], [k * du_dh, -gu]])
+            B = np.array([[0.0], [k * du_di * gain_u]])
             C = np.array([[dy_dh, 0.0]])
         else:
             A = np.array([
                 [0.0, 0.0, 1.0, 0.0],
                 [0.0, 0.0, 0.0, 1.0],
-                [k * (dfc_dz + dfm), -k * dfm, -gl, 0.0],
-                [-k * dfm, k * (-dfa_dh + dfm), 0.0, -gu],
+                [k * dl_dz, k * dl_dh, -gl, 0.0],
+                [k * du_dz, k * du_dh, 0.0, -gu],
             ])
-            B = np.array([[0.0], [0.0], [k * dfc_di * gain_u], [-k * dfa_di * gain_u]])
+            B = np.array([[0.0], [0.0], [k * dl_di * gain_u], [k * du_di * gain_u]])
             C = np.array([[0.0, dy_dh, 0.0, 0.0]])
         scale = self.time_scale()
         sys_c = ct.ss(A * scale, B * scale, C, np.zeros((1, 1)))
@@ -448,7 +450,7 @@ class Levitator:
         (``dt``: physical seconds per sample) scaled to std ``wander_force``.  s is the share of small
         steps (nonzero and at most ``WANDER_SMALL_STEP``) over the last ≈ ``WANDER_WINDOW`` samples and
         k = ``wander_power``, so a binary or constant input drives none.  Why: on the rig the output of
-        small white noise is mostly incoherent below 30 rad/s (docs/simulator.md, twelfth look), while the
+        small white noise is mostly incoherent below 30 rad/s, while the
         constant-current record and the staircase show no such wander.
         """
         p = self.params
@@ -499,7 +501,7 @@ class Levitator:
     def _switch_noise(self, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A reading disturbance at each command switch: white noise scaled by ``switch_noise`` x |Δu|,
         through the pole ``switch_noise_pole`` (the rig's records wobble after each switch, in proportion
-        to the step: docs/simulator.md, second attempt)."""
+        to the step: docs/simulator.md)."""
         p = self.params
         du = np.abs(np.diff(u, prepend=u[0]))
         return signal.lfilter([1.0], [1.0, -p.switch_noise_pole], p.switch_noise * du * rng.standard_normal(u.size))
@@ -520,93 +522,32 @@ class Levitator:
         return p.noise_std * (math.sqrt(frac) * line + math.sqrt(1 - frac) * white)
 
 
-# Named parameter sets of the lab's rig, so that a study's config names the plant its data came from and
-# a run logged before the defaults changed still reproduces (``dataset.plant``; docs/simulator.md).
+def _load_plants() -> dict[str, LevitatorParams]:
+    """Every plant file under ``PLANTS_DIR``, each complete: a file that misses or adds a parameter is refused
+    (a plant must not silently take another plant's numbers)."""
+    names = {f.name for f in fields(LevitatorParams)}
+    out = {}
+    for path in sorted(PLANTS_DIR.glob("*.toml")):
+        params = plant_file(path.stem)["params"]
+        missing, extra = sorted(names - set(params)), sorted(set(params) - names)
+        if missing or extra:
+            raise ValueError(f"{path.name}: [params] must set every LevitatorParams field once; "
+                             f"missing {missing}, unknown {extra}")
+        out[path.stem] = LevitatorParams(**params)
+    return out
 
-# the defaults with the upper bushing stuck (Coulomb 0.0047 N, static peak 0.022 N) and a slow wander force that
-# small command steps drive, the static curve fitted to the simulated staircase: the uniform class graded by
-# range as on the rig (issue 15, docs/simulator.md, twelfth and thirteenth looks); not the defaults: the
-# stair's steps lose their overshoot, and binary_signal_2's frequency response stays 3.9 dB off
-_STUCK_UPPER = dict(
-    gamma_lower=0.65507, gamma_upper=0.43522, gamma_quiet_lower=3.1552, gamma_quiet_upper=4.8812,
-    quiet_level_lower=0.11941, quiet_level_upper=0.096609, quiet_power_lower=3.9102, quiet_power_upper=4.4297,
-    activity_fast_lower=0.022208, activity_fast_upper=0.017006, activity_slow_lower=0.33118,
-    activity_slow_upper=0.38903, activity_release=0.21675, jitter_weight=1.2217, jitter_tau=0.024123,
-    gamma_aged_lower=1.5158, gamma_aged_upper=1.6114, age_half=0.20708, slip_renewal=0.10453, t_phys=0.005985,
-    sensor_pole=16.833, sensor_knee=8.6541, coulomb_lower=0.0029912, coulomb_upper=0.0047059, a=0.37548, b=1.227,
-    n_coil=1.2043, kappa=0.2091, y_off=0.32621, i_sat=3.9104, stiction_upper=0.022265, v_stribeck=1.316,
-    v_creep=0.0, noise_line_hz=114.09, wander_force=0.022598, wander_tau=1.0, wander_power=3.4346)
 
-PLANTS: dict[str, dict[str, float]] = {
-    # LevitatorParams' own defaults, the study's default plant from 2026-11-26 to 2026-11-27: light set-valued
-    # Coulomb friction on both bushings, a gentler class schedule and a 7 % shorter time base, the static curve
-    # fitted to the simulated staircase (issue 15, ninth look)
-    "stick_slip": {},
-    "stuck_upper": _STUCK_UPPER,
-    # the default plant since 2026-11-27 (DEFAULT_PLANT): stuck_upper read through a stronger sensor stretch (pole
-    # 15.3 cm, knee 8.19 cm), the damping in motion and while quiet refitted with it, a shorter wander, the static
-    # curve fitted to the simulated staircase: the first plant to meet every check of issue 15's done-when on
-    # seed 1, binary_signal_2's and white_noise_4's frequency responses included (2.9 and 2.3 dB). What it gives
-    # up: the stair's steps overshoot 1-2 % (rig 2-51 %), and 3 of seeds 1-12 miss a white-noise std
-    # (docs/simulator.md, fifteenth and sixteenth looks)
-    "stuck_stretched": {**_STUCK_UPPER, **dict(
-        a=0.21912, b=1.6919, n_coil=1.5275, kappa=0.25608, y_off=0.32112, i_sat=3.9082, sensor_pole=15.333,
-        sensor_knee=8.1899, h_top=15.283, gamma_lower=0.6552, gamma_upper=0.3927, gamma_quiet_lower=3.1855,
-        gamma_quiet_upper=4.9327, wander_force=0.0245, wander_tau=0.55)},
-    # the defaults earlier on 2026-11-26: the damping refitted with a sensor stretch, read through a sensor
-    # that stretches above 8.7 cm towards a pole at 17 cm, the static curve refitted under it; no dry friction
-    "stretched_sensor": dict(
-        gamma_lower=0.68249, gamma_upper=0.46272, gamma_quiet_lower=3.0372, gamma_quiet_upper=5.3467,
-        quiet_level_lower=0.11429, quiet_level_upper=0.091584, quiet_power_lower=6.2217, quiet_power_upper=6.9243,
-        activity_fast_lower=0.020302, activity_fast_upper=0.019192, activity_slow_lower=0.33533,
-        activity_slow_upper=0.39648, activity_release=0.18887, jitter_weight=1.2507, jitter_tau=0.025884,
-        gamma_aged_lower=1.5337, gamma_aged_upper=1.5358, age_half=0.20387, slip_renewal=0.10121, t_phys=0.0064307,
-        sensor_pole=17.0, sensor_knee=8.7, coulomb_lower=0.0, coulomb_upper=0.0, a=0.32626, b=1.47276,
-        n_coil=1.33774, kappa=0.139709, y_off=0.350783, i_sat=3.86921, noise_line_hz=106.18),
-    # the defaults until 2026-11-26: quiet-input and aged-contact damping, d = 10 cm, a linear sensor
-    # (issue 15's fifth attempt, 2026-11-23)
-    "quiet_ageing": dict(
-        gamma_lower=0.6767, gamma_upper=0.459, gamma_quiet_lower=3.0104, gamma_quiet_upper=5.14,
-        quiet_level_lower=0.11512, quiet_level_upper=0.090682, quiet_power_lower=6.2235, quiet_power_upper=6.8592,
-        activity_fast_lower=0.020101, activity_fast_upper=0.019334, activity_slow_lower=0.33223,
-        activity_slow_upper=0.39962, activity_release=0.18732, jitter_weight=1.2553, jitter_tau=0.02579,
-        gamma_aged_lower=1.5267, gamma_aged_upper=1.5359, age_half=0.20214, slip_renewal=0.10158,
-        t_phys=0.0064383, a=0.352464, b=1.404207, n_coil=1.291744, kappa=0.135485, y_off=0.350993,
-        i_sat=3.89868, sensor_pole=0.0, coulomb_lower=0.0, coulomb_upper=0.0, noise_line_hz=106.18),
-    # the defaults until 2026-11-23: Coulomb + Stribeck dry friction, d = 4.2 cm, no delay or switch noise
-    "dry_friction": dict(
-        a=0.3563, b=1.392, n_coil=1.275, kappa=0.1965, c=2.21e4, d=4.2, gamma_lower=2.629, gamma_upper=0.07442,
-        gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0, gamma_aged_upper=0.0,
-        coulomb_lower=0.006933, coulomb_upper=0.05094, stiction_lower=0.3606, stiction_upper=0.08819,
-        i_sat=3.899, delay=0.0, t_phys=0.005852, y_off=0.4505, noise_line_hz=116.81, switch_noise=0.0,
-        sensor_pole=0.0, v_creep=0.713),
-}
-DEFAULT_PLANT = "stuck_stretched"
+# Named plants of the lab's rig, so that a study's config names the plant its data came from and a run logged
+# before the default changed still reproduces (``dataset.plant``; docs/simulator.md, "Plants").
+PLANTS: dict[str, LevitatorParams] = _load_plants()
 
 
 def rig(plant: str = DEFAULT_PLANT) -> Levitator:
-    """The lab's rig as the study simulates it: the named parameter set of ``PLANTS``, with the logger's
-    quirk of writing a command >= 10 A as 0 A."""
+    """The lab's rig as the study simulates it: the named plant of ``PLANTS``, with the logger's quirk of
+    writing a command >= 10 A as 0 A."""
     if plant not in PLANTS:
         raise ValueError(f"plant must be one of {sorted(PLANTS)}, got {plant!r}")
-    return Levitator(replace(LevitatorParams(), **PLANTS[plant]), zero_at_10=True)
-
-
-def _friction(v: float, fc: float, fs: float, vs: float, vc: float, gamma: float) -> tuple[float, float]:
-    """Friction force [N] opposing velocity ``v`` [cm/s] and its slope dF/dv [N s/cm].
-
-    ``F(v) = (fc + fs exp(-(v/vs)^2)) tanh(v/vc) + gamma v / 100`` (gamma in N s/m):
-    Coulomb level ``fc``, a Stribeck peak ``fs`` above it at low speed, a tanh sign of
-    width ``vc`` (the creep/pre-sliding regime: at |v| << vc the dry friction acts like
-    a viscous damping (fc + fs) / vc) and viscous friction.  Reference form of the law
-    that the integrator inlines (and the tests check).
-    """
-    e = math.exp(-(v / vs) ** 2)
-    th = math.tanh(v / vc)
-    level = fc + fs * e
-    force = level * th + gamma * v / _CM
-    slope = level * (1.0 - th * th) / vc - 2.0 * fs * e * v / (vs * vs) * th + gamma / _CM
-    return force, slope
+    return Levitator(PLANTS[plant], zero_at_10=True)
 
 
 _REST_AGE = 10.0  # s (physical): contact age of both bushings when a record starts (at rest since long)
@@ -698,29 +639,40 @@ class _Damping:
         self.sample, self.substep, self.ages = sample, substep, ages
 
 
-def _velocity_step(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool):
+def _velocity_step(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool, batch: bool = False):
     """The velocity update of one magnet over one substep, for its dry-friction parameters.
 
-    ``hk`` is the substep times the force-to-acceleration factor; the returned function
-    maps (velocity, external force, viscous damping) to the new velocity (see :func:`_integrate`).
+    ``hk`` is the substep times the force-to-acceleration factor; the returned function maps (velocity,
+    external force, viscous damping) to the new velocity (see :func:`_integrate`), on floats or, with
+    ``batch``, on arrays with one element per record.  The friction is :mod:`maglev.sim.forces`' law.
     """
-    exp, tanh = math.exp, math.tanh
+    exp, tanh = (np.exp, np.tanh) if batch else (math.exp, math.tanh)
     if fc + fs <= 0.0:  # viscous only: implicit Euler
         return lambda v, a, gamma: (v + hk * a) / (1.0 + hk * gamma)
-    if smooth:
-        def step(v: float, a: float, gamma: float) -> float:
-            e = exp(-v * v * ivs2) if fs else 0.0
-            th = tanh(v * ivc)
-            level = fc + fs * e
-            slope = level * (1.0 - th * th) * ivc + gamma - 2.0 * fs * e * v * ivs2 * th
-            return v + hk * (a - level * th - gamma * v) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
+    if smooth:  # one Newton step of backward Euler about the old velocity, the negative slope left explicit
+        if batch:
+            def step(v, a, gamma):
+                force, slope = friction(v, gamma, fc, fs, ivs2, ivc, exp, tanh)
+                return v + hk * (a - force - gamma * v) / (1.0 + hk * np.maximum(slope, 0.0))
+        else:
+            def step(v, a, gamma):
+                force, slope = friction(v, gamma, fc, fs, ivs2, ivc, exp, tanh)
+                return v + hk * (a - force - gamma * v) / (1.0 + hk * (slope if slope > 0.0 else 0.0))
         return step
 
-    def stick_slip(v: float, a: float, gamma: float) -> float:
-        damp = 1.0 + hk * gamma
-        band = hk * (fc + fs * exp(-v * v * ivs2)) / damp
-        v = (v + hk * a) / damp
-        return v - band if v > band else (v + band if v < -band else 0.0)
+    # set-valued: the magnet sticks when the trial velocity lies within the band the friction can cancel
+    if batch:
+        def stick_slip(v, a, gamma):
+            damp = 1.0 + hk * gamma
+            band = hk * (stribeck_level(v, fc, fs, ivs2, exp) if fs else fc) / damp  # the same numbers
+            v = (v + hk * a) / damp
+            return v - np.clip(v, -band, band)  # v - band above the band, v + band below it, 0.0 within
+    else:
+        def stick_slip(v, a, gamma):
+            damp = 1.0 + hk * gamma
+            band = hk * stribeck_level(v, fc, fs, ivs2, exp) / damp
+            v = (v + hk * a) / damp
+            return v - band if v > band else (v + band if v < -band else 0.0)
     return stick_slip
 
 
@@ -728,32 +680,22 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
                z0: float, h0: float) -> tuple[np.ndarray, np.ndarray]:
     """Semi-implicit Euler on plain floats: (linearly) implicit friction, explicit forces.
 
-    Velocities are updated first with the forces at the current positions and the
-    friction treated implicitly, then positions with the new velocities; the seat
-    (z >= 0) and the top stop (h <= h_top) are inelastic.  The viscous damping varies
-    from substep to substep (:class:`_Damping`) and is implicit.  With ``v_creep > 0`` the
-    optional dry friction (Coulomb + Stribeck, tanh-regularised) is linearised about the old
-    velocity, ``v' = v + hs (a_ext - k F(v)) / (1 + hs k max(F'(v), 0))`` - one Newton
-    step of backward Euler, stable however steep the tanh is (the velocity-weakening
-    part, whose slope is negative, stays explicit).  With ``v_creep = 0`` the dry
-    friction is set-valued (exact stick-slip): a magnet sticks when the trial velocity
-    lies within the band the friction level at the old speed can cancel in one step.
-    Returns the heights at the start of every sample (sample-then-actuate, as the lab's
-    logging loop and the ZOH model assume).
+    Velocities are updated first with the forces at the current positions (:func:`~maglev.sim.forces.magnet_forces`)
+    and the friction treated implicitly, then positions with the new velocities; the seat (z >= 0) and the top
+    stop (h <= h_top) are inelastic.  The viscous damping varies from substep to substep (:class:`_Damping`)
+    and is implicit.  With ``v_creep > 0`` the dry friction (Coulomb + Stribeck, tanh-regularised,
+    :func:`~maglev.sim.forces.friction`) is linearised about the old velocity,
+    ``v' = v + hs (a_ext - k F(v)) / (1 + hs k max(F'(v), 0))`` - one Newton step of backward Euler, stable however
+    steep the tanh is (the velocity-weakening part, whose slope is negative, stays explicit).  With
+    ``v_creep = 0`` the dry friction is set-valued (exact stick-slip): a magnet sticks when the trial velocity
+    lies within the band the friction level at the old speed can cancel in one step.  Returns the heights at
+    the start of every sample (sample-then-actuate, as the lab's logging loop and the ZOH model assume).
     """
     hs = dt / substeps
-    k = _CM / p.m
-    w = p.m * p.g
-    ia = 1.0 / p.a
-    n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
-    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
-    vc = p.v_creep
-    smooth = vc > 0.0
-    ivc = 1.0 / vc if smooth else 0.0
-    hk = hs * k
+    hk = hs * (_CM / p.m)  # as the force-to-acceleration factor k = 100 / m, times the substep
     top = p.h_top
-    step_l = _velocity_step(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, smooth)
-    step_u = _velocity_step(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, smooth)
+    step_l, step_u = _velocity_steps(p, hk, batch=False)
+    forces = magnet_forces(p)
     cur_list = cur.tolist()
     damping = _Damping(p, hs, dt, cur_list[0])
     sample, substep = damping.sample, damping.substep
@@ -763,14 +705,11 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     for i, (i_c, f_n) in enumerate(zip(cur_list, force.tolist())):
         zs[i] = z  # the reading is taken at the start of the sample, then the new current acts
         hs_out[i] = h
-        ci = i_c * ia
         sample(i_c)
         for _ in range(substeps):
-            fm = c / (h - z + d) ** 4
-            az = ci / (z + b) ** n - fm - w  # N, external force on the lower magnet
-            ah = fm - kap * ci / (h + b) ** n - w + f_n  # N, on the upper magnet
+            az, ah = forces(i_c, z, h)  # N, external force on the lower and the upper magnet
             vz = step_l(vz, az, damping.lower)
-            vh = step_u(vh, ah, damping.upper)
+            vh = step_u(vh, ah + f_n, damping.upper)
             substep(vz, vh)
             z += hs * vz
             h += hs * vh
@@ -781,25 +720,13 @@ def _integrate(p: LevitatorParams, cur: np.ndarray, force: np.ndarray, dt: float
     return np.array(zs), np.array(hs_out)
 
 
-def _velocity_step_batch(hk: float, fc: float, fs: float, ivs2: float, ivc: float, smooth: bool):
-    """:func:`_velocity_step` on arrays of velocities, forces and dampings (one element per record)."""
-    if fc + fs <= 0.0:
-        return lambda v, a, gamma: (v + hk * a) / (1.0 + hk * gamma)
-    if smooth:
-        def step(v: np.ndarray, a: np.ndarray, gamma: np.ndarray) -> np.ndarray:
-            e = np.exp(-v * v * ivs2) if fs else 0.0
-            th = np.tanh(v * ivc)
-            level = fc + fs * e
-            slope = level * (1.0 - th * th) * ivc + gamma - 2.0 * fs * e * v * ivs2 * th
-            return v + hk * (a - level * th - gamma * v) / (1.0 + hk * np.maximum(slope, 0.0))
-        return step
-
-    def stick_slip(v: np.ndarray, a: np.ndarray, gamma: np.ndarray) -> np.ndarray:
-        damp = 1.0 + hk * gamma
-        band = hk * (fc + fs * np.exp(-v * v * ivs2)) / damp if fs else hk * fc / damp  # the same numbers
-        v = (v + hk * a) / damp
-        return v - np.clip(v, -band, band)  # v - band above the band, v + band below it, 0.0 within
-    return stick_slip
+def _velocity_steps(p: LevitatorParams, hk: float, batch: bool):
+    """The lower and the upper magnet's :func:`_velocity_step` for the plant ``p``."""
+    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
+    smooth = p.v_creep > 0.0
+    ivc = 1.0 / p.v_creep if smooth else 0.0
+    return (_velocity_step(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, smooth, batch),
+            _velocity_step(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, smooth, batch))
 
 
 def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: int, z0: float,
@@ -808,15 +735,9 @@ def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: i
     the upper magnet's heights (records x samples).  Each substep costs a few dozen numpy
     operations on the rows, so a batch of a few hundred records runs ≈ 10x faster than a loop."""
     hs = dt / substeps
-    k = _CM / p.m
-    w = p.m * p.g
-    ia = 1.0 / p.a
-    n, b, c, d, kap = p.n_coil, p.b, p.c, p.d, p.kappa
-    ivc = 1.0 / p.v_creep if p.v_creep > 0.0 else 0.0
-    ivs2 = 1.0 / (p.v_stribeck * p.v_stribeck)
-    hk = hs * k
-    step_l = _velocity_step_batch(hk, p.coulomb_lower, p.stiction_lower, ivs2, ivc, p.v_creep > 0.0)
-    step_u = _velocity_step_batch(hk, p.coulomb_upper, p.stiction_upper, ivs2, ivc, p.v_creep > 0.0)
+    hk = hs * (_CM / p.m)  # as the force-to-acceleration factor k = 100 / m, times the substep
+    step_l, step_u = _velocity_steps(p, hk, batch=True)
+    forces = magnet_forces(p)
     rows = cur.shape[0]
     z, h = np.full(rows, z0), np.full(rows, h0)
     vz, vh = np.zeros(rows), np.zeros(rows)
@@ -824,12 +745,12 @@ def _integrate_batch(p: LevitatorParams, cur: np.ndarray, dt: float, substeps: i
     out = np.empty_like(cur)
     for i in range(cur.shape[1]):
         out[:, i] = h
-        ci = cur[:, i] * ia
-        damping.sample(cur[:, i])
+        i_c = cur[:, i]
+        damping.sample(i_c)
         for _ in range(substeps):
-            fm = c / (h - z + d) ** 4
-            vz = step_l(vz, ci / (z + b) ** n - fm - w, damping.lower)
-            vh = step_u(vh, fm - kap * ci / (h + b) ** n - w, damping.upper)
+            az, ah = forces(i_c, z, h)
+            vz = step_l(vz, az, damping.lower)
+            vh = step_u(vh, ah, damping.upper)
             damping.substep(vz, vh)
             z = z + hs * vz
             h = h + hs * vh

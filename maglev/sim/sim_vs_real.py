@@ -21,14 +21,14 @@ order shows both on every record:
   plateaus, pairs faster than 1000 rad/s sit at the decimated records' Nyquist frequency;
   both are skipped) is the 215 rad/s one.
 
-The issue-15 checks (``ARMAX_ORDERS``, ``FRF_CLASSES``):
+The ARMAX and frequency-response measurements (``ARMAX_ORDERS``, ``FRF_CLASSES``):
 
 * ARMAX [4 4 4 1] on ``binary_signal_2`` at the labelled 1 ms, as the 2022 group
   identified it (whole record mean removed, first half): the rig shows two lightly
   damped modes (≈ 74 and ≈ 218 rad/s).  The fit is repeated on the simulated record
   without measurement noise: ARMAX's A polynomial also carries the noise's poles, so
   a sharp sensor-noise line can take two of its four poles (docs/simulator.md);
-* the real records' Welch frequency-response estimate (:func:`maglev.sim.bla.frequency_response`,
+* the real records' Welch frequency-response estimate (:func:`maglev.spectral.frequency_response`,
   with its coherence-based error) against the simulator's best linear approximation
   for the same input class (:func:`maglev.sim.bla.bla`), both trimmed and detrended at 1 ms,
   compared in dB where the real estimate's coherence is at least ``FRF_COHERENCE``: the
@@ -55,6 +55,9 @@ the same band), so the working point can be told apart from the range: on the ri
 working point as the simulator's does, and the damping grows (the first step after lift-off overshoots 51 %,
 the steps above 3 A 2-4 %).
 
+Which of these numbers are checks, with which tolerances and why, is declared once in
+:mod:`maglev.sim.checks`; :meth:`Comparison.verdicts` and the table's verdicts read it.
+
 Frequencies are in rad/s of the 1 ms label the records carry.
 """
 
@@ -65,62 +68,41 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
 
-from maglev.lab.averages import get_stationary_averages
 from maglev.lab.input_design import choose_alpha, output_spectrum
-from maglev.lab.sampling import held_steps, rise_time
-from maglev.sim import bla as bla_mod
+from maglev.lab.measures import (ARMAX_ORDERS, FAST_BAND, FOURTH_DECIMATION, FOURTH_ORDERS, HOP_LEVEL, OE_ORDERS,
+                                 SLOW_BAND, STD_PARTS, TRANSIENT_FRACTION, StairStep, armax_modes_of, dominant_mode_of,
+                                 fourth_order_modes_of, hops, least_damped, noise_psd, output_level, output_std,
+                                 output_std_parts, quantisation_step, stair_averages, stair_step, stair_steps,
+                                 two_modes)
+from maglev.sim import bla as bla_mod, checks
+from maglev.sim.checks import (ARMAX_RECORD, ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE, FRF_TOLERANCE_DB,
+                               MODE_TOLERANCE, POLE_RECORDS, RATIO_TOLERANCE, STATIC_NOISE_MULTIPLE,
+                               STD_TOLERANCE, WHITE_RECORD, Mode)
 from maglev.data import IOData
-from maglev.estimation import armax, oe
 from maglev.sim.labdata import ExperimentSpec
 from maglev.sim.plant import Levitator
 from maglev.refdata import load_record
+from maglev.spectral import FrequencyResponse, Preprocess, frequency_response
 
-__all__ = ["Mode", "Comparison", "FrfComparison", "compare", "compare_frf", "dominant_mode", "complex_modes",
-           "least_damped", "dominant_mode_of", "fourth_order_modes_of", "armax_modes_of", "two_modes", "armax_errors",
-           "output_std", "output_split", "coherent_gain", "hops", "record_frf", "record_halves", "halves_frf",
-           "halves_db", "stair_averages", "stair_step", "StairStep", "stair_steps",
-           "quantisation_step", "noise_psd"]
+__all__ = ["Comparison", "FrfComparison", "compare", "compare_frf", "armax_errors", "output_split", "coherent_gain",
+           "record_frf", "record_halves", "halves_frf", "halves_db"]
 
-STAIR_LEVELS = 21
-STAIR_TAIL = 50.0
-TRANSIENT_FRACTION = 0.25  # start-up transient dropped from identification records
-POLE_RECORDS = ("binary_signal_3", "binary_signal_4", "binary_signal_2", "binary_signal_1")
-OE_ORDERS = (2, 2, 3)  # nb, nf, nk of the models whose dominant mode is compared
-FOURTH_ORDERS = (4, 4, 5)  # nb, nf, nk of the models that resolve both modes (after decimation)
-FOURTH_DECIMATION = 2
-WHITE_RECORD = "white_noise_4"  # white noise over the working region 1.5-4 A
-STATIC_NOISE_MULTIPLE = 5.0  # static-curve tolerance: rms <= this many noise std
-MODE_TOLERANCE = 0.2  # relative error of ωn and ζ counted as a match
-RISE_TOLERANCE = 0.25  # relative error of the rise time counted as agreement (same decimation advice)
-SLOWEST_RESONANCE = 30.0  # rad/s: slower identified pairs are drift or stick plateaus, not resonances
-# rad/s: faster pairs sit at the Nyquist frequency of the records decimated by FOURTH_DECIMATION (1571 rad/s), the
-# noise's sample-to-sample alternation, not a resonance (the rig's modes lie near 75-90 and 215 rad/s)
-FASTEST_RESONANCE = 1000.0
 # records whose output std shows the rig's amplitude dependence (notes §4.6)
 RECORD_INPUTS = {"binary_signal_1": "bin α.25 1.5-3 A", "binary_signal_2": "bin α.25 1.5-4 A",
                  "binary_signal_3": "bin α.5 1.5-4 A", "binary_signal_4": "bin α.5 1.5-3 A",
                  "white_noise_1": "U(1.5, 3) A", "white_noise_2": "U(1.75, 2.5) A",
                  "white_noise_4": "U(1.5, 4) A"}
-STD_RECORDS = tuple(RECORD_INPUTS)
-# issue 15: the 2022 group's ARMAX on the α .25 1.5-4 A record, and the frequency-domain comparison
-ARMAX_ORDERS = (4, 4, 4, 1)  # na, nb, nc, nk, at the labelled 1 ms
-ARMAX_RECORD = "binary_signal_2"
-SLOW_BAND, FAST_BAND = (40.0, 150.0), (150.0, 400.0)  # rad/s: where the two lightly damped modes lie
-LIGHTLY_DAMPED = 0.6  # ζ below which a pair counts as a lightly damped mode
-ARMAX_WN_TOLERANCE, ARMAX_ZETA_TOLERANCE = 0.15, 0.30
-STD_TOLERANCE = 1.25  # output stds within [1/1.25, 1.25] of the real ones
-RATIO_TOLERANCE = 0.25  # binary α .25 / white-noise std ratio within 25 % of the rig's
+STD_RECORDS = checks.STD_RECORDS
+# the 2022 group's ARMAX on the α .25 1.5-4 A record, and the frequency-domain comparison
 FRF_CLASSES = {  # real record -> its input class (the simulator's BLA is estimated for this class)
     "binary_signal_2": ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=20.0),
     "binary_signal_3": ExperimentSpec("binary", 1.5, 4.0, alpha=0.5, duration_s=20.0),
     "white_noise_4": ExperimentSpec("uniform", 1.5, 4.0, duration_s=20.0),
 }
-FRF_PREPROCESS = bla_mod.Preprocess(trim=2000, detrend=True, decimate=1)
+FRF_PREPROCESS = Preprocess(trim=2000, detrend=True, decimate=1)
 FRF_SEGMENT_S = 1.0  # s per Welch segment: 17+ averages on a 20 s record, 6.3 rad/s resolution
 FRF_COHERENCE = 0.5  # the real estimate's coherence above which the magnitudes are compared
-FRF_TOLERANCE_DB = 3.0
 FRF_REALISATIONS = 8
 EXACT_DRAWS = 2000  # Monte Carlo draws of FrfComparison.exact_max_db
 # rad/s of the 1 ms label, for the FRF gap by band: below the slow mode (≈ 75-90 rad/s), around it, between the
@@ -141,107 +123,14 @@ GAIN_BAND = SPLIT_BANDS[1]  # rad/s: around the slow mode (≈ 75-90 rad/s), bel
 # constant-input records that start from rest (0 A): how far a large step throws the upper magnet
 STARTUP_RECORDS = ("binary_signal_9", "binary_signal_10")  # 3 A, 4 A (the regulator saturated)
 STARTUP_SAMPLES = 1000  # the throw's peak is sought in the first ones
-STAIR_STEP_RANGE = (1.5, 4.0)  # A: the staircase's levels inside the working region (rise time, overshoot)
 
-Mode = tuple[float, float]  # (ωn [rad/s], ζ)
 
 
 # ---------------------------------------------------------------------- the lab's numbers
-def stair_averages(data: IOData) -> tuple[np.ndarray, np.ndarray]:
-    """Stationary averages (ū, ȳ) of the 21-level staircase."""
-    return (get_stationary_averages(data.u, STAIR_LEVELS, STAIR_TAIL),
-            get_stationary_averages(data.y, STAIR_LEVELS, STAIR_TAIL))
-
-
-def stair_step(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE) -> tuple[float, float]:
-    """(rise time [samples], overshoot [fraction]) of the mean normalised stair step in ``u_range``."""
-    rt = rise_time(data, u_range=u_range)
-    return rt.samples, float(rt.response.max() - 1.0)
-
-
-@dataclass(frozen=True)
-class StairStep:
-    """One stair step's numbers: the levels ``u0`` -> ``u1`` [A], its overshoot (fraction of the step) and
-    its band gain [cm/A]: the rms of |G| over a band (trapezoids on a 1 rad/s grid), G the DTFT of the
-    step's impulse response (the differenced response over the whole hold, per A of the step)."""
-
-    u0: float
-    u1: float
-    overshoot: float
-    band_gain: float
-
-
-def stair_steps(data: IOData, u_range: tuple[float, float] = STAIR_STEP_RANGE,
-                band: tuple[float, float] = GAIN_BAND) -> list[StairStep]:
-    """Overshoot and band gain of each stair step in ``u_range``, one by one.
-
-    Why: the mean normalised step (:func:`stair_step`) averages the working points away.  Step by
-    step, with the step size fixed, the numbers say how the dynamics change with the working point
-    alone, which the records with a wider input range confound with the range.
-    """
-    lo, hi = band
-    w = np.linspace(lo, hi, int(round(hi - lo)) + 1) * data.Ts  # rad/sample
-    out = []
-    for step in held_steps(data, u_range=u_range):
-        r = step.response(data.y)
-        h = np.diff(r, prepend=0.0) * (step.y1 - step.y0) / (step.u1 - step.u0)
-        _, g = signal.freqz(h, worN=w)
-        power = np.trapezoid(np.abs(g) ** 2, w) / (w[-1] - w[0])
-        out.append(StairStep(u0=step.u0, u1=step.u1, overshoot=float(r.max() - 1.0), band_gain=float(np.sqrt(power))))
-    return out
-
-
-def noise_psd(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Welch periodogram of the detrended reading (frequencies in cycles/sample)."""
-    return signal.welch(y - y.mean(), nperseg=512)
-
-
-def quantisation_step(y: np.ndarray) -> float:
-    """Smallest nonzero difference between readings (the ADC step)."""
-    steps = np.abs(np.diff(np.asarray(y, dtype=float)))
-    return float(steps[steps > 1e-9].min())
-
-
-def output_std(data: IOData) -> float:
-    """Std of the reading after dropping the start-up transient (``TRANSIENT_FRACTION``) [cm]."""
-    return float(np.std(data.trim(TRANSIENT_FRACTION).y))
-
-
-STD_PARTS = 3  # pieces of the kept part whose stds show how steady a record's amplitude is
-
-
-def output_std_parts(data: IOData, parts: int = STD_PARTS) -> tuple[float, ...]:
-    """Std of each of ``parts`` equal consecutive pieces of the reading after the start-up transient [cm].
-
-    Why: the check compares one std per record, and the rig's small records are not steady (white_noise_1's
-    thirds differ by 1.7x); their spread says how well a single record knows its own std.
-    """
-    return tuple(float(np.std(piece)) for piece in np.array_split(data.trim(TRANSIENT_FRACTION).y, parts))
-
-
-HOP_LEVEL = 12.0  # cm: the rig's readings exceed it only in binary_signal_2's hops
-
-
-def hops(data: IOData, level: float = HOP_LEVEL) -> tuple[float, float]:
-    """(share of the reading above ``level``, largest reading [cm]) after the start-up transient.
-
-    Why: on the rig, binary α .25 over 1.5-4 A throws the upper magnet up in hops that read up to
-    15.6 cm, and no other record passes 10.5 cm; the output std alone cannot tell such hops from a
-    larger steady swing.
-    """
-    y = data.trim(TRANSIENT_FRACTION).y
-    return float(np.mean(y > level)), float(y.max())
-
-
-def output_level(data: IOData) -> float:
-    """Mean reading after the start-up transient [cm]: the working point a record sits at."""
-    return float(np.mean(data.trim(TRANSIENT_FRACTION).y))
-
-
-def record_frf(data: IOData) -> bla_mod.FrequencyResponse:
+def record_frf(data: IOData) -> FrequencyResponse:
     """A record's Welch frequency-response estimate with the comparison's settings (``FRF_PREPROCESS``,
     ``FRF_SEGMENT_S``): the same for a real record and a simulated replay."""
-    return bla_mod.frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
+    return frequency_response(FRF_PREPROCESS.apply(data), FRF_SEGMENT_S)
 
 
 def record_halves(data: IOData) -> tuple[IOData, IOData]:
@@ -253,7 +142,7 @@ def record_halves(data: IOData) -> tuple[IOData, IOData]:
     return data.segment(0, trim + half), data.segment(half, trim + 2 * half)
 
 
-def halves_frf(data: IOData) -> tuple[bla_mod.FrequencyResponse, bla_mod.FrequencyResponse]:
+def halves_frf(data: IOData) -> tuple[FrequencyResponse, FrequencyResponse]:
     """:func:`record_frf` of each of a record's :func:`record_halves`, first half first."""
     first, second = record_halves(data)
     return record_frf(first), record_frf(second)
@@ -268,7 +157,7 @@ def halves_db(data: IOData, bands: tuple[tuple[float, float], ...] = FRF_BANDS) 
     nonlinear plant answers differently, and the rig itself may drift.  The simulator's replay of the
     same input shows the first reason alone; what the rig shows beyond it is its own drift.  On
     binary_signal_2 the rig's second half passes 1.9-2.5 dB less than its first from 150 to 300 rad/s,
-    stick_slip's replay 0.6 dB less to 0.2 dB more (docs/simulator.md, fourteenth look).
+    stick_slip's replay 0.6 dB less to 0.2 dB more.
     """
     first, second = halves_frf(data)
     both = (first.coherence >= FRF_COHERENCE) & (second.coherence >= FRF_COHERENCE) & (first.w > 0)
@@ -276,7 +165,7 @@ def halves_db(data: IOData, bands: tuple[tuple[float, float], ...] = FRF_BANDS) 
 
 
 def output_split(data: IOData, bands: tuple[tuple[float, float], ...] = SPLIT_BANDS) -> list[tuple[float, float]]:
-    """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.sim.bla.FrequencyResponse.band_rms`)
+    """(coherent, incoherent) output rms [cm] per band of a record (:meth:`~maglev.spectral.FrequencyResponse.band_rms`)
     of its :func:`record_frf`.  Why: the output std alone cannot tell an output the input drives
     from one it does not.
     """
@@ -303,71 +192,6 @@ def _noise_numbers(data: IOData) -> tuple[float, float, float]:
     return output_std(data), float(f[np.argmax(psd)]), quantisation_step(y)
 
 
-# ---------------------------------------------------------------------- identified modes
-def _continuous(poles: np.ndarray, Ts: float) -> np.ndarray:
-    s = np.log(np.asarray(poles, dtype=complex)) / Ts
-    return s[np.abs(s) > 0]
-
-
-def dominant_mode(poles: np.ndarray, Ts: float) -> Mode:
-    """(ωn [rad/s], ζ) of the slowest complex pole pair (else slowest pole), via s = log(z)/Ts."""
-    s = _continuous(poles, Ts)
-    cplx = s[s.imag > 1e-9]
-    pick = cplx if cplx.size else s
-    p = pick[np.argmin(np.abs(pick))]
-    return float(abs(p)), float(-p.real / abs(p))
-
-
-def complex_modes(poles: np.ndarray, Ts: float) -> list[Mode]:
-    """(ωn [rad/s], ζ) of every complex pole pair, slowest first."""
-    s = _continuous(poles, Ts)
-    return sorted((float(abs(p)), float(-p.real / abs(p))) for p in s[s.imag > 1e-9])
-
-
-def dominant_mode_of(data: IOData) -> Mode:
-    """Dominant mode of the OE(2,2,3) model of a record (trimmed, detrended)."""
-    d = data.trim(TRANSIENT_FRACTION).detrend()
-    return dominant_mode(oe(d, *OE_ORDERS).poles(), d.Ts)
-
-
-def fourth_order_modes_of(data: IOData) -> list[Mode]:
-    """Complex modes of the OE(4,4,5) model of a record (trimmed, detrended, decimated by 2)."""
-    d = data.trim(TRANSIENT_FRACTION).detrend().decimate(FOURTH_DECIMATION)
-    return complex_modes(oe(d, *FOURTH_ORDERS).poles(), d.Ts)
-
-
-def armax_modes_of(data: IOData) -> list[Mode]:
-    """Complex modes of ARMAX [4 4 4 1] on the first half of the record with its mean removed (no trim)."""
-    est, _ = data.detrend().split(0.5)
-    return complex_modes(armax(est, *ARMAX_ORDERS).poles(), data.Ts)
-
-
-def two_modes(modes: list[Mode]) -> tuple[Mode | None, Mode | None]:
-    """The least-damped lightly damped mode in ``SLOW_BAND`` and in ``FAST_BAND`` (None where there is none)."""
-    def pick(band: tuple[float, float]) -> Mode | None:
-        inside = [m for m in modes if band[0] <= m[0] < band[1] and m[1] < LIGHTLY_DAMPED]
-        return min(inside, key=lambda m: m[1]) if inside else None
-    return pick(SLOW_BAND), pick(FAST_BAND)
-
-
-def least_damped(modes: list[Mode], slowest: float = SLOWEST_RESONANCE, fastest: float = FASTEST_RESONANCE) -> Mode:
-    """The mode with the smallest ζ among those with ``slowest`` <= ωn <= ``fastest`` (NaNs if there is none)."""
-    resonances = [m for m in modes if slowest <= m[0] <= fastest]
-    return min(resonances, key=lambda m: m[1]) if resonances else (math.nan, math.nan)
-
-
-def _within(sim: Mode, real: Mode) -> bool:
-    return all(abs(s / r - 1) <= MODE_TOLERANCE for s, r in zip(sim, real))
-
-
-def _std_within(real: float, sim: float) -> bool:
-    return 1 / STD_TOLERANCE <= sim / real <= STD_TOLERANCE
-
-
-def _ratio_within(real: float, sim: float) -> bool:
-    return abs(sim / real - 1) <= RATIO_TOLERANCE
-
-
 def _modes_text(modes: list[Mode]) -> str:
     return ", ".join(f"{w:.0f}/{z:.2f}" for w, z in modes) or "none"
 
@@ -379,8 +203,8 @@ class FrfComparison:
     calibration's cost, against the Welch FRF of the simulator's replay of the record)."""
 
     record: str
-    real: bla_mod.FrequencyResponse
-    sim: bla_mod.FrequencyResponse
+    real: FrequencyResponse
+    sim: FrequencyResponse
 
     @property
     def band(self) -> np.ndarray:
@@ -397,11 +221,6 @@ class FrfComparison:
     def max_db(self) -> float:
         d = self.difference_db
         return float(np.max(np.abs(d))) if d.size else math.nan
-
-    @property
-    def within(self) -> bool:
-        """Whether :attr:`max_db` is within ``FRF_TOLERANCE_DB`` (issue 15's check; nan: no coherent bin, no)."""
-        return self.max_db <= FRF_TOLERANCE_DB
 
     @property
     def rms_db(self) -> float:
@@ -427,7 +246,7 @@ class FrfComparison:
         """Median largest |dB| difference a simulator would show whose BLA were the rig's true response [dB].
 
         Monte Carlo over the real estimate's own error alone: each coherent bin's estimate is the true
-        response plus a complex Gaussian error of rms ``real.std`` (:class:`~maglev.sim.bla.FrequencyResponse`).
+        response plus a complex Gaussian error of rms ``real.std`` (:class:`~maglev.spectral.FrequencyResponse`).
         Why: :attr:`max_db` is a maximum over tens of bins, each off by its own error (:attr:`real_error_db`,
         ≈ 0.8 dB), so even an exact simulator does not read 0; this is what it would read.
         """
@@ -440,10 +259,11 @@ class FrfComparison:
         largest = np.max(np.abs(20 * np.log10(np.abs(G + error) / np.abs(G))), axis=1)
         return float(np.median(largest))
 
-    def text(self) -> str:
+    def text(self, within: bool) -> str:
+        """The table's row; ``within``: the check's verdict (:data:`maglev.sim.checks.CHECKS`)."""
         w = self.real.w[self.band]
         span = f"{w.min():5.0f}-{w.max():4.0f}" if w.size else "    none"
-        ok = "yes" if self.within else "no"
+        ok = "yes" if within else "no"
         return (f"{self.record:>16} {span} {w.size:5d} {self.max_db:7.1f} {self.rms_db:7.1f} "
                 f"{self.real_error_db:9.1f} {self.exact_max_db():12.1f}   within {FRF_TOLERANCE_DB:g} dB: {ok}")
 
@@ -512,41 +332,28 @@ class Comparison:
         return STATIC_NOISE_MULTIPLE * self.noise_real[0]
 
     def verdicts(self) -> dict[str, bool]:
-        """Every check the table states a tolerance for -> whether it is within: the static curve, the rise time
-        (``RISE_TOLERANCE``), α* (equal), each identified mode, each output std and their ratio, ARMAX's two
-        modes and each frequency response, as far as this comparison holds them.  Why: the table's last line
-        counts them, so a refit's verdict is one line, not a search for "no" among a hundred."""
-        out = {"static curve": self.static_rms <= self.static_tolerance,
-               "rise time": abs(self.rise_sim / self.rise_real - 1) <= RISE_TOLERANCE,
-               "alpha*": self.alpha_sim == self.alpha_real}
-        out.update({f"mode {rec}": _within(sim, real) for rec, (real, sim) in self._mode_rows()})
-        out.update({f"std {rec}": _std_within(real, sim) for rec, (real, sim) in (self.stds or {}).items()})
-        if self.stds and "binary_signal_2" in self.stds and WHITE_RECORD in self.stds:
-            out["std ratio"] = _ratio_within(*self.std_ratio)
-        if self.armax:
-            real, sim = (two_modes(m) for m in self.armax)
-            errs = armax_errors(sim, real)
-            out.update({f"ARMAX {name} mode": _armax_within(errs, name) for name in ("slow", "fast")})
-        out.update({f"FRF {rec}": c.within for rec, c in (self.frf or {}).items()})
-        return out
+        """Every check of :data:`maglev.sim.checks.CHECKS` this comparison holds the record of -> whether it is
+        within its tolerance.  The table's last line counts them, so a refit's verdict is one line."""
+        return checks.verdicts(self)
+
+    @property
+    def armax_pairs(self) -> tuple[tuple[Mode | None, Mode | None], tuple[Mode | None, Mode | None]] | None:
+        """(real, sim) ARMAX modes picked per band (:func:`two_modes`: slow, fast), or None without ARMAX."""
+        return tuple(two_modes(m) for m in self.armax) if self.armax else None
 
     def _mode_rows(self) -> list[tuple[str, tuple[Mode, Mode]]]:
         """The identified modes' rows of the table: each record's dominant mode, then white_noise_4's second."""
         rows = list(self.modes.items())
-        if self.fourth_order and WHITE_RECORD in self.fourth_order:
+        if self.white_noise_mode is not None:
             rows.append((f"{WHITE_RECORD}*", self.white_noise_mode))
         return rows
 
-    def _verdict_line(self) -> str:
-        v = self.verdicts()
-        missed = [name for name, ok in v.items() if not ok]
-        return (f"Checks within their tolerances: {len(v) - len(missed)} of {len(v)}"
-                + (f"; not within: {', '.join(missed)}" if missed else ""))
-
     @property
-    def white_noise_mode(self) -> tuple[Mode, Mode]:
-        """(real, sim) least-damped OE(4,4,5) mode of ``white_noise_4`` (the ≈ 215 rad/s one)."""
-        real, sim = (self.fourth_order or {}).get(WHITE_RECORD, ([], []))
+    def white_noise_mode(self) -> tuple[Mode, Mode] | None:
+        """(real, sim) least-damped OE(4,4,5) mode of ``white_noise_4`` (the ≈ 215 rad/s one), None without it."""
+        if not self.fourth_order or WHITE_RECORD not in self.fourth_order:
+            return None
+        real, sim = self.fourth_order[WHITE_RECORD]
         return least_damped(real), least_damped(sim)
 
     def _startup_lines(self) -> list[str]:
@@ -572,6 +379,7 @@ class Comparison:
         return lines
 
     def table(self) -> str:
+        verdicts = self.verdicts()
         lines = ["Static curve (mean of last 50 % of each 500-sample level) [cm]",
                  f"{'u [A]':>7} {'real':>8} {'sim':>8} {'diff':>8}"]
         for u, yr, ys in zip(self.u_bar, self.y_real, self.y_sim):
@@ -592,7 +400,7 @@ class Comparison:
                   "detrended; wn in rad/s of the 1 ms label",
                   f"{'record':>16} {'wn real':>8} {'wn sim':>8} {'err':>6} {'zeta real':>9} {'zeta sim':>9} {'err':>6}"]
         for rec, ((wr, zr), (ws, zs)) in self._mode_rows():
-            ok = "yes" if _within((ws, zs), (wr, zr)) else "no"
+            ok = "yes" if verdicts[f"mode {rec}"] else "no"
             lines.append(f"{rec:>16} {wr:8.1f} {ws:8.1f} {ws / wr - 1:+6.0%} {zr:9.2f} {zs:9.2f} "
                          f"{zs / zr - 1:+6.0%}  within {MODE_TOLERANCE:.0%}: {ok}")
         if self.fourth_order:
@@ -606,7 +414,7 @@ class Comparison:
                       f"{'record':>16} {'input':>18} {'real':>7} {'sim':>7} {'sim/real':>8} {'spread real':>11} "
                       f"{'sim':>5} {'level sim-real':>14}"]
             for rec, (sr, ss) in self.stds.items():
-                ok = "yes" if _std_within(sr, ss) else "no"
+                ok = "yes" if verdicts[f"std {rec}"] else "no"
                 parts = (self.std_parts or {}).get(rec)
                 spread = (" ".join(f"{max(p) / min(p):5.2f}" for p in parts) if parts else f"{'':5} {'':5}")
                 level = (self.levels or {}).get(rec)
@@ -619,7 +427,7 @@ class Comparison:
                              f"spans {STD_TOLERANCE ** 2:.2f}x); level: mean reading, sim minus real")
             if "binary_signal_2" in self.stds and WHITE_RECORD in self.stds:
                 real, sim = self.std_ratio
-                ok = "yes" if _ratio_within(real, sim) else "no"
+                ok = "yes" if verdicts["std ratio"] else "no"
                 lines.append(f"  binary α .25 / white noise, both 1.5-4 A: real {real:.1f}x, sim {sim:.1f}x "
                              f"({sim / real - 1:+.0%}; within {RATIO_TOLERANCE:.0%}: {ok})")
             if self.hops:
@@ -655,7 +463,7 @@ class Comparison:
             picked = [two_modes(m) for m in self.armax]
             for label, modes, pair in zip(("real", "sim"), self.armax, picked):
                 lines.append(f"  {label:>4}: {_modes_text([m for m in pair if m]):<22} (all: {_modes_text(modes)})")
-            lines.append("  errors: " + _armax_errors_text(*picked))
+            lines.append("  errors: " + _armax_errors_text(*picked, verdicts))
             if self.armax_noise_free is not None:
                 lines.append(f"  sim without measurement noise: {_modes_text(self.armax_noise_free)} "
                              "(what the plant shows; the noisy record's answer depends on the noise's spectrum)")
@@ -665,7 +473,7 @@ class Comparison:
                       f"where the real coherence >= {FRF_COHERENCE:g}",
                       f"{'record':>16} {'band rad/s':>10} {'bins':>5} {'max dB':>7} {'rms dB':>7} {'real ±dB':>9} "
                       f"{'max if exact':>12}"]
-            lines += [c.text() for c in self.frf.values()]
+            lines += [c.text(verdicts[f"FRF {rec}"]) for rec, c in self.frf.items()]
             lines.append("  max if exact: the median max dB a BLA equal to the rig's true response would show, "
                          "from the real estimate's own error (real ±dB, 1σ per bin) alone")
             lines += ["  mean dB, sim BLA over real, by band in rad/s (coherent bins only; '.': none):",
@@ -676,7 +484,7 @@ class Comparison:
                              "halves): the rig's record, then the simulator's replay of its input")
                 for rec, (real, sim) in self.halves.items():
                     lines += [f"{rec:>16} " + _db_row(real) + "  real", f"{'':>16} " + _db_row(sim) + "  sim"]
-        lines += ["", self._verdict_line()]
+        lines += ["", checks.verdict_line(self)]
         return "\n".join(lines)
 
 
@@ -748,7 +556,8 @@ def compare(lev: Levitator, root: Path | None = None, records: tuple[str, ...] =
                                                      seed=seed, noise=False)) if armax_check else None,
         frf={rec: compare_frf(lev, rec, root, pairs[rec][0]) for rec in frf_records} or None,
         halves={rec: tuple(halves_db(d) for d in pairs[rec]) for rec in frf_records} or None,
-        split=split or None, gains=gains or None, steps=(stair_steps(stair), stair_steps(sim_stair)),
+        split=split or None, gains=gains or None,
+        steps=(stair_steps(stair, band=GAIN_BAND), stair_steps(sim_stair, band=GAIN_BAND)),
     )
 
 
@@ -761,12 +570,8 @@ def armax_errors(sim: tuple[Mode | None, Mode | None], real: tuple[Mode | None, 
     return out
 
 
-def _armax_within(errs: dict[str, float], name: str) -> bool:
-    """Whether ARMAX's ``name`` ("slow"/"fast") mode is found and within its tolerances (nan: missing, no)."""
-    return abs(errs[f"{name} wn"]) <= ARMAX_WN_TOLERANCE and abs(errs[f"{name} zeta"]) <= ARMAX_ZETA_TOLERANCE
-
-
-def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | None, Mode | None]) -> str:
+def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | None, Mode | None],
+                       verdicts: dict[str, bool]) -> str:
     errs = armax_errors(sim, real)
     parts = []
     for name in ("slow", "fast"):
@@ -774,5 +579,5 @@ def _armax_errors_text(real: tuple[Mode | None, Mode | None], sim: tuple[Mode | 
         if math.isnan(wn):
             parts.append(f"{name} mode missing")
         else:
-            parts.append(f"{name} wn {wn:+.0%} zeta {z:+.0%} ({'yes' if _armax_within(errs, name) else 'no'})")
+            parts.append(f"{name} wn {wn:+.0%} zeta {z:+.0%} ({'yes' if verdicts[f'ARMAX {name} mode'] else 'no'})")
     return "; ".join(parts) + f" [tolerances {ARMAX_WN_TOLERANCE:.0%} / {ARMAX_ZETA_TOLERANCE:.0%}]"

@@ -53,6 +53,9 @@ class PolySpec:
     def from_orders(cls, structure: str, orders) -> "PolySpec":
         """Build from a MATLAB order vector, e.g. ``("bj", [2, 2, 2, 2, 1])``."""
         names = get(structure).orders
+        if isinstance(orders, (str, bytes)) or not hasattr(orders, "__len__"):
+            raise ValueError(f"{structure} takes orders [{' '.join(names)}] (a list of {len(names)} integers), "
+                             f"got {orders!r}")
         orders = list(orders)
         if len(orders) != len(names):
             raise ValueError(

@@ -39,6 +39,7 @@ from maglev.study.lazy import lazy_module
 # imported on first use: a relaunch with nothing to do (maglev.study.resume) ends before MLflow is imported
 claims = lazy_module("maglev.study.claims")
 datasets = lazy_module("maglev.study.datasets")
+environment = lazy_module("maglev.study.environment")
 progress = lazy_module("maglev.study.progress")
 render = lazy_module("maglev.study.render")
 tracking = lazy_module("maglev.study.tracking")
@@ -254,6 +255,7 @@ class SweepCallback(Callback):
         else:
             self.parent = client.create_run(exp_id, run_name=name, tags=tags).info.run_id
             self.fresh = True
+            self._log_environment()
         sweep_dir.mkdir(parents=True, exist_ok=True)
         (sweep_dir / tracking.PARENT_FILE).write_text(self.parent)
         os.environ[tracking.PARENT_ENV] = self.parent
@@ -265,14 +267,22 @@ class SweepCallback(Callback):
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
             log.info("sweep %r: the lab steps (working region, rise time and Ts, output spectrum, alpha*) on its "
                      "parent run", name)
-            self._log_lab(task)
+            self._log_lab(task, jobs)
         os.environ[progress.START_ENV] = str(time.time())  # the runs start: their ETA counts from here
 
-    def _log_lab(self, task: dict) -> None:
+    def _log_environment(self) -> None:
+        """``environment/requirements.txt``: what `pip install -r` needs to rebuild this environment. Like the
+        lab steps it informs, so a store that refuses it is a warning, not the end of the sweep."""
+        try:
+            self.client.log_text(self.parent, environment.requirements(environment.current()), environment.ARTIFACT)
+        except Exception as exc:
+            log.warning("environment not recorded: %s: %s", type(exc).__name__, exc)
+
+    def _log_lab(self, task: dict, jobs: list[dict]) -> None:
         from maglev.study.lab import lab_steps
 
         try:
-            metrics, figures, summary = lab_steps(task)
+            metrics, figures, summary = lab_steps(task, jobs)
         except Exception as exc:  # the lab steps are informative; the sweep goes on
             log.warning("lab steps failed: %s: %s", type(exc).__name__, exc)
             tracking.log_batch(self.client, self.parent, tags={"lab_error": f"{type(exc).__name__}: {exc}"})
@@ -280,6 +290,7 @@ class SweepCallback(Callback):
         from maglev.study.figures import png
 
         files = {f"lab/{k}": png(fig) for k, fig in figures.items()}
+        files["lab/decisions.json"] = summary.pop("decisions")  # schema: maglev.lab.decision
         files["lab/lab.json"] = summary
         tracking.log_files(self.client, self.parent, files)
         tracking.log_batch(self.client, self.parent, metrics=metrics, tags={"lab_logged": "true"})

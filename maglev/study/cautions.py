@@ -17,7 +17,8 @@ BJ falls to order 7 or 8, so a grid judged by either ends at its edge.  The simu
 FIT measures G alone, the part an order is for.  An order counts as needed when it
 gains more than ``ORDER_MARGIN`` = 1 point of mean simulation FIT: above order 4 the
 mean moves by at most 0.63 points from one order to the next, either way, while order
-3 to 4 gains 7.0 to 8.3 points for ARX, ARMAX and BJ (README, "Choosing the orders").
+3 to 4 gains 7.0 to 8.3 points for ARX, ARMAX and BJ (measured on an earlier plant:
+docs/decisions/0003-orders-by-simulation-fit.md).
 """
 
 from __future__ import annotations
@@ -132,7 +133,9 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     every order, with the parsimony rule: the smallest order within ``margin`` FIT points of the best.
 
     Returns ``{"chosen", "best", "grid", "fit": {order: mean FIT}, "datasets", "edge", "suggest", "bla",
-    "bla_datasets"}`` (None with fewer than two orders).  ``edge`` is ``"upper"`` when the chosen order is the
+    "bla_datasets"}`` (None with fewer than two orders).  ``chosen`` is the orders decision's
+    (:func:`maglev.lab.orders.final_order`: an order whose models move away from the best linear approximation
+    does not count).  ``edge`` is ``"upper"`` when the chosen order is the
     largest swept (every lower order simulates more than ``margin`` worse: the FIT still rises at the top of the
     grid), ``"lower"`` when the smallest swept order (> 1) simulates more than ``margin`` better than every other
     (the FIT falls as the order rises from the bottom), else None: the FIT levels off inside the grid or within
@@ -144,16 +147,18 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     by = runs.pivot_table(index="dataset", columns="order", values="val_fit_sim", aggfunc="mean").dropna()
     if by.shape[1] < 2 or by.empty:
         return None
+    from maglev.lab.orders import final_order
+
     fit = {int(o): float(v) for o, v in by.mean().sort_index().items()}
     grid = list(fit)
     best = max(fit, key=fit.get)
-    chosen = min(o for o in grid if fit[o] >= fit[best] - margin)
+    bla, n_bla = _bla_by_order(runs)
+    chosen, settled = final_order(fit, margin, bla)  # the orders decision's rule (maglev.lab.orders)
     edge, suggest = None, None
-    if chosen == grid[-1]:
+    if not settled:
         edge, suggest = "upper", grid[-1] + 1
     elif best == grid[0] > 1 and all(fit[best] - fit[o] > margin for o in grid[1:]):
         edge, suggest = "lower", grid[0] - 1
-    bla, n_bla = _bla_by_order(runs)
     return {"chosen": chosen, "best": best, "grid": grid, "fit": fit, "datasets": len(by), "edge": edge,
             "suggest": suggest, "bla": bla, "bla_datasets": n_bla}
 

@@ -6,7 +6,7 @@
     maglev reap       [--tracking-uri URI] [--experiment NAME] [--older-than-hours H]
     maglev ui         [--tracking-uri URI] [--port 5000]
     maglev labdata    --out DIR [--seed N]          (the simulator's lab dataset)
-    maglev calibrate  [--refdata DIR] [--no-fit] [--plant NAME] [--seed N]
+    maglev calibrate  [--refdata DIR] [--no-fit] [--plant NAME] [--seed N] [--markdown PATH]
                                                     (refit the simulator to the real records)
 
 ``python -m maglev …`` is the same command.  The store defaults to

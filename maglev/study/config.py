@@ -128,7 +128,9 @@ def parts(n_raw: int, trim: int, decimate: int, split: float) -> tuple[int, int]
 def check_lengths(ds: dict, spec, study: dict, n_raw: int) -> None:
     """The estimation and validation parts left by trim, decimate and split must be long enough for the
     structure (``SAMPLES_PER_PARAMETER`` per parameter, and the estimator's own minimum) and for the
-    validation (``study.resid_lags`` below half its samples, ``study.val_horizon`` below their number).
+    validation (``study.resid_lags`` below half its samples; ``study.val_horizon`` at most half of
+    them, so that at least half of the k-step predictions start from a measured output: the first k
+    come from the initial state alone, and a horizon of N samples or more is a simulation).
 
     The error names the key to change first: the trim or decimation when both parts are too
     short, the split when an even split would do, else the orders (estimation) or the
@@ -140,7 +142,7 @@ def check_lengths(ds: dict, spec, study: dict, n_raw: int) -> None:
     trim, k, split = int(pp["trim"]), int(pp["decimate"]), float(pp["split"])
     lags, horizon = int(study["resid_lags"]), int(study["val_horizon"])
     need_est = max(spec.max_lag + 2 * spec.n_params + 1, SAMPLES_PER_PARAMETER * spec.n_params, MIN_SAMPLES)
-    need_val = max(2 * (lags + 1), horizon + 1, MIN_SAMPLES)
+    need_val = max(2 * (lags + 1), 2 * horizon, MIN_SAMPLES)
 
     def fits(n_est: int, n_val: int) -> bool:
         return n_est >= need_est and n_val >= need_val
@@ -159,13 +161,13 @@ def check_lengths(ds: dict, spec, study: dict, n_raw: int) -> None:
     elif n_est < need_est:
         key = f"structure.order ({spec.label})"
     else:
-        key = f"study.val_horizon={horizon}" if need_val == horizon + 1 else f"study.resid_lags={lags}"
+        key = f"study.val_horizon={horizon}" if need_val == 2 * horizon else f"study.resid_lags={lags}"
     others = [k_ for k_, ok in changes.items() if ok and k_ != key]
     raise StudyConfigError(
         f"{key}: dataset {name!r} ({n_raw} samples; trim {trim}, decimate {k}, split {split}) leaves "
         f"{n_est} estimation and {n_val} validation samples; {spec.label} needs at least {need_est} estimation "
         f"samples ({spec.n_params} parameters, {SAMPLES_PER_PARAMETER} samples each) and the validation at "
-        f"least {need_val} (study.resid_lags={lags} below half of them)"
+        f"least {need_val} (study.resid_lags={lags} below half of them, study.val_horizon={horizon} at most half)"
         + (f"; changing {' or '.join(others)} alone would also do" if others else ""))
 
 

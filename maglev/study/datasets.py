@@ -2,7 +2,7 @@
 
 No Hydra and no MLflow here: ``load`` takes the ``dataset`` section of the resolved
 config as a plain dict, so :mod:`maglev.study.reproduce` and notebooks can call it directly.
-Simulated experiments come from :mod:`maglev.sim.labdata`; files from ``data_dir``.
+Simulated records come from :mod:`maglev.sim.labdata`; files from ``data_dir``.
 Preprocessing order: trim → detrend → decimate → split.
 """
 
@@ -84,7 +84,7 @@ def plant_name(ds: dict) -> str:
 
 
 def _bla_preprocess(ds: dict):
-    from maglev.sim.bla import Preprocess
+    from maglev.spectral import Preprocess
 
     pp = ds["preprocess"]
     return Preprocess(trim=int(pp["trim"]), detrend=bool(pp["detrend"]), decimate=int(pp["decimate"]))

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid, plot_step
 
-DPI = 150  # the report's figures (issue 12: >= 150 dpi)
+DPI = 150  # the report's figures: at least 150 dpi, sharp in print
 RUN_DPI = 110  # each run's figures, browsed in the MLflow UI (≈ 800 px wide)
 LEVEL = 0.99  # confidence level of every band the study draws
 
@@ -84,7 +84,7 @@ def run_figures(inputs) -> dict:
     Bode.  The Bode diagram overlays the reference G is scored against: the simulator's BLA for the
     dataset's input class with its 99 % band, else this record's own spectral estimate with its band;
     and the small-signal Jacobian dashed where known."""
-    from maglev.sim.bla import frequency_response
+    from maglev.spectral import frequency_response
 
     prep, model, rr, true_sys, ref = inputs.prepared, inputs.model, inputs.resid, inputs.true_system(), inputs.bla
     yhat, ysim, val_fit, val_fit_sim, horizon = (inputs.yhat, inputs.ysim, inputs.val_fit, inputs.val_fit_sim,

@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from maglev.data import IOData
-from maglev.lab.input_design import choose_alpha, output_spectrum
 from maglev.lab.sampling import rise_time
 from maglev.lab.working_region import working_region
 from maglev.sim.plant import DEFAULT_PLANT
@@ -34,19 +33,27 @@ def staircase(lab: dict, data_dir: str, plant: str) -> IOData:
     return experiment("working_region", plant=rig(plant))
 
 
-def lab_steps(cfg: dict) -> tuple[dict, dict, dict]:
-    """(metrics, figures, summary) of the lab steps for the resolved config ``cfg``."""
+def lab_steps(cfg: dict, jobs: list[dict] | None = None) -> tuple[dict, dict, dict]:
+    """(metrics, figures, summary) of the lab steps for the resolved config ``cfg`` of a sweep whose jobs'
+    configs are ``jobs`` (default: ``cfg`` alone); ``summary["decisions"]`` is the ``decisions.json`` content
+    (:mod:`maglev.lab.decision`)."""
+    from maglev.lab.decision import write_decisions
+    from maglev.sim.plant import rig
+    from maglev.study.decisions import alpha_star_of, sweep_decisions
+
     lab = cfg["lab"]
     ds = cfg["dataset"]
-    stairs = staircase(lab, cfg["data_dir"], plant_name(ds) if ds["source"] == "sim" else DEFAULT_PLANT)
+    plant = plant_name(ds) if ds["source"] == "sim" else DEFAULT_PLANT
+    stairs = staircase(lab, cfg["data_dir"], plant)
     n = stairs.N - stairs.N % int(lab["levels"])
     stairs = stairs.segment(0, n)
     wr = working_region(stairs.u, stairs.y, int(lab["levels"]), float(lab["tail"]))
     rt = rise_time(stairs, u_range=(wr.u_min, wr.u_max), tail=float(lab["tail"]))
     prep = load(cfg["dataset"], cfg["data_dir"])
-    spec = output_spectrum(prep.data.y, float(lab["energy_fraction"]))
-    alpha = choose_alpha(spec.band)
+    # α is a probability per recorded sample: the band is taken on the recorded (not decimated) axis
+    spec, alpha = alpha_star_of(prep.raw, int(ds["preprocess"]["trim"]), float(lab["energy_fraction"]))
     orders = order_selection(prep, int(lab["max_order"]), int(lab["max_delay"]))
+    decisions = sweep_decisions(cfg, jobs or [cfg], wr, rig(plant).params.i_sat, rt.response)
     metrics = {
         "lab.u_min": wr.u_min, "lab.u_max": wr.u_max, "lab.u_star": wr.u_star, "lab.slope": wr.slope,
         "lab.rise_time_samples": rt.samples, "lab.rise_time_s": rt.seconds,
@@ -67,7 +74,7 @@ def lab_steps(cfg: dict) -> tuple[dict, dict, dict]:
     summary = {"staircase": lab["staircase_file"] or "simulated working_region",
                "spectrum_dataset": prep.name, **metrics,
                "alpha_shares": dict(zip(map(str, alpha.alphas), alpha.shares)),
-               "arxstruc": orders["table"].to_dict(orient="records")}
+               "arxstruc": orders["table"].to_dict(orient="records"), "decisions": write_decisions(decisions)}
     return metrics, figures, summary
 
 

@@ -4,8 +4,9 @@
 the run, re-applies the schema, recomputes the identification without MLflow and
 compares every metric except timings (``fit_seconds``) exactly.  ``--log`` also logs
 the reproduction as a new run tagged ``reproduces=RUN_ID`` (``kind=reproduction``).
-The run's ``git_commit`` tag says which code produced it, and its ``lib.*`` tags which
-numpy, scipy and control; a different checkout or library version is reported, and
+The run's ``git_commit`` tag says which code produced it, its ``lib.*`` tags which
+numpy, scipy and control, and its sweep's ``environment/requirements.txt`` every installed
+package (:mod:`maglev.study.environment`); a different checkout or package version is reported, and
 metrics that differ only by rounding (:func:`within_rounding`) are told apart from
 real differences.  A wrong id, a run that is not a model run (a sweep parent, a ranking) or one
 that did not finish raises :class:`~maglev.study.store.SweepError` with one line saying
@@ -85,6 +86,24 @@ def recompute(cfg: dict, logged: dict[str, float]):
     return all(same(a, b) for _, a, b in rows) and bool(rows), rows, out
 
 
+def _compare_environment(client, run) -> None:
+    """Warn, naming each package, when this environment differs from the one the run's sweep recorded."""
+    from maglev.study import environment
+    from maglev.study.store import artifact_bytes
+
+    parent = run.data.tags.get("mlflow.parentRunId")
+    raw = artifact_bytes(client, parent, environment.ARTIFACT) if parent else None
+    if raw is None:
+        print(f"note: the run's sweep recorded no environment ({environment.ARTIFACT}); package versions "
+              "are not compared", file=sys.stderr)
+        return
+    diff = environment.differences(environment.parse(raw.decode()), environment.current())
+    if diff:
+        print(f"warning: {len(diff)} package(s) differ from the sweep's environment: {', '.join(diff)}; "
+              f"`pip install -r {environment.ARTIFACT}` (an artifact of parent run {parent}) rebuilds it",
+              file=sys.stderr)
+
+
 def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool = False) -> tuple[bool, list]:
     """(identical?, rows of (metric, logged, recomputed)) for the run ``run_id``."""
     from maglev.study import tracking
@@ -109,6 +128,7 @@ def reproduce(run_id: str, uri: str, data_dir: str | None = None, log_run: bool 
         print("note: run made with " + ", ".join(f"{k[len(tracking.LIBRARY_TAG):]} {was} (now {current})"
                                                  for k, (current, was) in libs.items())
               + ": metrics may differ in their last digits", file=sys.stderr)
+    _compare_environment(client, run)
     ok, rows, out = recompute(cfg, run.data.metrics)
     if log_run:
         client2, exp_id = tracking.connect(cfg["tracking"] | {"uri": uri})

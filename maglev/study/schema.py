@@ -32,6 +32,21 @@ if not OmegaConf.has_resolver("maglev.root"):
     OmegaConf.register_new_resolver("maglev.root", lambda: str(project_root()))
 
 
+def _decided(rule: str):
+    """A resolver that asks :mod:`maglev.study.decisions` for a rule's answer (imported on first use)."""
+    def resolve(*args):
+        from maglev.study import decisions
+
+        return getattr(decisions, rule)(*args)
+    return resolve
+
+
+for _name, _rule in (("maglev.record", "chosen_record"), ("maglev.transient", "transient_samples"),
+                     ("maglev.split", "split_fraction")):
+    if not OmegaConf.has_resolver(_name):
+        OmegaConf.register_new_resolver(_name, _decided(_rule))
+
+
 class InputClass(Enum):
     uniform = "uniform"
     binary = "binary"

@@ -3,7 +3,7 @@
 ``mlflow ui`` as documented starts four web workers and seven job processes (≈ 3 GB,
 ≈ 80 s to answer on two cores); the job runner only serves MLflow's GenAI features.
 Here the server runs with one worker, without job execution, bound to 127.0.0.1 (no
-authentication: never bind a shared address without protection, see the README).
+authentication: never bind a shared address without protection, see docs/study.md, "Server security").
 
 The URL printed opens the runs table in "model training" mode (the query parameter
 ``workflowType=machine_learning``: MLflow 3.17 ignores the experiment's

@@ -2,8 +2,9 @@
 
 * compare/predict/resid with an estimated initial state: for ARX (and ARMAX with nc = 0)
   MATLAB leaves the pre-sample outputs and inputs free, so the first max(na, nb+nk−1)
-  one-step residuals vanish (k − 1 more for a k-step prediction) and simulation fits the
-  free response of the pre-sample data by least squares.
+  one-step residuals vanish; a k-step prediction fits the same pre-sample data (no more
+  free values for a longer horizon) and simulation fits the free response of the
+  pre-sample data by least squares.
 * arx's report: N = all samples, V = Σe²/N with the first na residuals zero,
   d = na + nb + na (the na initial outputs are estimated), FIT over the whole record.
 * backcast counts its states in d; "auto" chooses zero or backcast by MATLAB's rule.
@@ -40,21 +41,34 @@ def halves(refdata):
     return _halves(refdata)
 
 
-def k_step_by_hand(A, B, y, u, k):
-    """ARX k-step prediction iterated from measured data; pre-sample data free, so the
-    first max(na, nb+nk−1) + k − 1 predictions equal the measurements."""
-    na = A.size - 1
-    first = max(na, B.size - 1) + k - 1
-    t = np.arange(first, y.size)
-    z = {}  # z[o]: prediction of y(t − k + 1 + o) from data up to t − k
+def k_step_from(A, B, y, u, k, y_pre, u_pre):
+    """ARX prediction of y(t) from the data up to t − k (the pre-sample outputs ``y_pre`` =
+    y(−1), y(−2), … and inputs ``u_pre`` = u(−1), u(−2), … known; for t < k from them alone),
+    iterating the one-step model with predicted outputs in place of the unknown ones."""
+    na, L = A.size - 1, B.size - 1
+    P = max(na, L)
+    yx = np.r_[np.zeros(P - na), y_pre[::-1], y]  # yx[P + s] = y(s) for s >= -P
+    ux = np.r_[np.zeros(P - L), u_pre[::-1], u]
+    t = np.arange(y.size)
+    z = {}  # z[o]: y(s) at s = t − k + 1 + o, predicted when 0 <= s, known before the record
     for o in range(k):
         s = t - k + 1 + o
-        z[o] = sum(B[j] * u[s - j] for j in range(B.size))
+        at = lambda x, lag: x[np.maximum(P + s - lag, 0)]  # noqa: E731
+        acc = sum(B[j] * at(ux, j) for j in range(B.size))
         for i in range(1, na + 1):
-            z[o] = z[o] - A[i] * (z[o - i] if o - i >= 0 else y[s - i])
-    yhat = y.copy()
-    yhat[first:] = z[k - 1]
-    return yhat
+            acc = acc - A[i] * (z[o - i] if o - i >= 0 else at(yx, i))
+        z[o] = np.where(s < 0, at(yx, 0), acc)
+    return z[k - 1]
+
+
+def k_step_by_hand(A, B, y, u, k):
+    """ARX k-step prediction with the na pre-sample outputs and nb+nk−1 pre-sample inputs
+    fitted by least squares of the k-step errors: as many free values for every k."""
+    na, L = A.size - 1, B.size - 1
+    base = k_step_from(A, B, y, u, k, np.zeros(na), np.zeros(L))
+    cols = [k_step_from(A, B, y, u, k, *np.split(np.eye(na + L)[i], [na])) - base for i in range(na + L)]
+    x, *_ = np.linalg.lstsq(np.column_stack(cols), y - base, rcond=None)
+    return base + np.column_stack(cols) @ x
 
 
 def simulation_by_hand(A, B, y, u):
@@ -88,7 +102,7 @@ def armax4108(refdata):
 
 
 @pytest.mark.parametrize("model", ["arx418", "armax4108"])
-@pytest.mark.parametrize("horizon", [1, 5, math.inf])
+@pytest.mark.parametrize("horizon", [1, 5, 50, math.inf])
 def test_compare_is_matlabs_arx_convention(request, halves, model, horizon):
     _, val = halves
     m = request.getfixturevalue(model)

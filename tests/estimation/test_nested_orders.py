@@ -2,8 +2,7 @@
 
 With zero initial conditions a model one order higher in one polynomial contains the
 lower one (its extra coefficient zero), so its minimum loss cannot be higher; an
-estimator that ends above it has stopped in a poorer local minimum.  Grids as in
-issue 10 — OE nb, nf 1..4; ARMAX na, nb, nc 1..3; BJ nb, nc, nd, nf 1..3; nk = 1 — on
+estimator that ends above it has stopped in a poorer local minimum.  Grids: OE nb, nf 1..4; ARMAX na, nb, nc 1..3; BJ nb, nc, nd, nf 1..3; nk = 1 — on
 the first halves (means removed) of DaISy's dryer and the lab's binary_signal_2.
 
 Plain calls, as a user makes them, are checked on the OE and ARMAX grids and on

@@ -27,7 +27,7 @@ def _span(ax) -> tuple[float, float]:
 
 def test_working_region_figure_marks_the_region_and_the_working_point():
     u_levels = np.arange(0, 11, 1.0)
-    y_levels = np.clip(u_levels, 3, 7) * 2.0
+    y_levels = np.clip(u_levels, 3, 7.5) * 2.0  # the plateau starts between levels 7 and 8
     wr = working_region(staircase(u_levels, 20), staircase(y_levels, 20), 11, 50)
     ax = plots.plot_working_region(wr).axes[0]
     assert _vertical_lines(ax) == [3.0, 5.0, 7.0]  # u_min, u*, u_max

@@ -15,13 +15,15 @@ import pytest
 from scipy import signal
 
 from maglev.sim import bla as bla_mod
-from maglev.sim.bla import (BLA, Preprocess, bla, frequency_response, record_distance, relative_distance,
-                            validation_records, weighted_distance)
+from maglev.sim.bla import BLA, bla, record_distance, relative_distance, validation_records, weighted_distance
+from maglev.spectral import FrequencyResponse, Preprocess, frequency_response
 from maglev.data import IOData
 from maglev.estimation import arx, oe
 from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.model import PolyModel
-from maglev.sim.plant import Levitator
+from maglev.sim.plant import PLANTS, Levitator, rig
+
+STICK_SLIP = PLANTS["stick_slip"]  # the plant these tests' numbers were measured on
 
 BINARY = ExperimentSpec("binary", 1.5, 4.0, alpha=0.25, duration_s=12.0)
 NARROW = ExperimentSpec("uniform", 1.75, 2.5, duration_s=12.0)
@@ -61,7 +63,6 @@ def test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies():
     """A slow pole-zero pair near ω = 0 (as OE [4 4 2] fits on the narrow uniform class) on a flat input
     spectrum: given the model's response as a function the distance is the integral's; sampled at the
     Welch frequencies it weighs the pair's dip at ω = 0 as if it filled a whole bin."""
-    from maglev.sim.bla import FrequencyResponse
 
     w = np.linspace(0, np.pi / 1e-3, 1001)  # the Welch grid of 2 s segments at 1 ms: 0.5 Hz apart
     suu = np.ones(w.size)
@@ -116,13 +117,13 @@ def test_one_record_frequency_response_error_matches_its_coherence_based_standar
 @pytest.fixture(scope="module")
 def binary_bla(tmp_path_factory) -> BLA:
     """The default levitator's BLA for binary α .25 1.5-4 A, 12 s, trimmed, detrended, decimated by 2."""
-    return bla(BINARY, Levitator(zero_at_10=True), preprocess=DEC2, realisations=6, segment_s=SEG,
+    return bla(BINARY, rig("stick_slip"), preprocess=DEC2, realisations=6, segment_s=SEG,
                cache=tmp_path_factory.mktemp("bla"))
 
 
 def test_levitator_bla_depends_on_the_input_class(binary_bla):
     big = binary_bla
-    small = bla(NARROW, Levitator(zero_at_10=True), preprocess=DEC2, realisations=3, segment_s=SEG, cache=False)
+    small = bla(NARROW, rig("stick_slip"), preprocess=DEC2, realisations=3, segment_s=SEG, cache=False)
     assert big.Ts == small.Ts == 2e-3
     band = (big.w > 30) & (big.w < 300)  # rad/s: around both resonances
     z = np.abs(big.G - small.G)[band] / np.hypot(big.std, small.std)[band]
@@ -134,7 +135,7 @@ def test_levitator_bla_depends_on_the_input_class(binary_bla):
 
 
 def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_distortion(binary_bla):
-    lev, est = Levitator(zero_at_10=True), binary_bla
+    lev, est = rig("stick_slip"), binary_bla
     records = []
     for seed in range(4):  # held out: seeds the estimate did not use
         u = input_signal(replace(BINARY, seed=seed))
@@ -157,7 +158,7 @@ def test_simulation_error_of_any_linear_model_is_its_weighted_distance_plus_the_
 
 
 def test_cache_round_trip_and_key(tmp_path, monkeypatch):
-    lev = Levitator(zero_at_10=True)
+    lev = rig("stick_slip")
     spec = replace(NARROW, duration_s=6.0)
     first = bla(spec, lev, preprocess=DEC2, realisations=2, segment_s=SEG, cache=tmp_path)
     assert len(list(tmp_path.glob("*.npz"))) == 1
@@ -228,7 +229,7 @@ def test_band_rms_splits_the_output_into_the_filtered_input_and_the_noise():
 def test_band_rms_rejects_a_band_that_is_not_one(lo, hi):
     w = np.linspace(0, np.pi / 1e-3, 501)  # 2π rad/s apart: (1, 2) holds no frequency
     ones = np.ones(w.size)
-    frf = bla_mod.FrequencyResponse(w=w, G=ones.astype(complex), std=0 * ones, coherence=ones, Suu=ones, Syy=ones,
+    frf = FrequencyResponse(w=w, G=ones.astype(complex), std=0 * ones, coherence=ones, Suu=ones, Syy=ones,
                                     Ts=1e-3, averages=1)
     with pytest.raises(ValueError, match=f"lo={lo!r}, hi={hi!r}|{lo!r} <= w < {hi!r}"):
         frf.band_rms(lo, hi)
@@ -239,7 +240,7 @@ def test_blas_of_several_classes_are_the_estimates_bla_makes_one_class_at_a_time
     another length alone: every array and number equal to bla's own, class by class, and on disk."""
     specs = [replace(BINARY, duration_s=0.8), replace(NARROW, duration_s=0.8), replace(NARROW, duration_s=1.0)]
     settings = dict(preprocess=Preprocess(trim=200), realisations=bla_mod.BATCH_FROM, segment_s=0.25)
-    lev = Levitator()
+    lev = Levitator(STICK_SLIP)
     batches = []
     simulate_batch = Levitator.simulate_batch
     monkeypatch.setattr(Levitator, "simulate_batch", lambda self, U, **kw: batches.append(len(U)) or

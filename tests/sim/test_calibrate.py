@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from maglev import refdata
-from maglev.sim import calibrate, sim_vs_real
-from maglev.sim.plant import Levitator, rig
-from maglev.sim.sim_vs_real import stair_averages
+from maglev.lab import measures
+from maglev.lab.measures import stair_averages
+from maglev.sim import calibrate, checks, sim_vs_real
+from maglev.sim.plant import rig
 
 REAL = Path(os.environ.get("MAGLEV_REFDATA", Path(__file__).resolve().parents[2].parent / "shared" / "refdata"))
 needs_real = pytest.mark.skipif(not (REAL / refdata.KTH_2022).is_dir(),
@@ -59,7 +60,7 @@ def test_a_sticking_plants_static_curve_is_fitted_to_its_simulated_staircase():
     assert rms(fitted) < 0.001 < rms(start) < rms(equilibria)
 
 
-# ---------------------------------------------------------------------- dynamics (issues #3, #15)
+# ---------------------------------------------------------------------- dynamics
 
 @needs_real
 @pytest.mark.realdata
@@ -67,27 +68,27 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
     targets = calibrate.friction_targets(REAL)
     fitted = rig()
     errors, penalty = calibrate.friction_errors(fitted, targets)
-    legacy = {k: v for k, v in errors.items() if k.endswith(calibrate.LEGACY_CHECKS) and not k.startswith("armax")}
+    legacy = {k: v for k, v in errors.items() if k.startswith("mode ") or k == "rise time"}
     # ωn and ζ of five identified modes and the rise time, each within its tolerance
     assert len(legacy) == 11 and max(legacy.values()) <= 1.0, legacy
     assert penalty == 0.0
-    # issue 15's checks are scored too (7 stds, the ratio, 4 ARMAX numbers, 2 frequency responses)
+    # the other scored checks too (7 stds, the ratio, 4 ARMAX numbers, 2 frequency responses)
     assert len(errors) == 11 + 14
     # the damping in motion alone (no quiet-input, no aged-contact part) fails the checks
     in_motion = fitted.with_params(gamma_quiet_lower=0.0, gamma_quiet_upper=0.0, gamma_aged_lower=0.0,
                                    gamma_aged_upper=0.0)
     errors_motion, penalty_motion = calibrate.friction_errors(in_motion, targets)
     assert max(errors_motion.get(k, math.inf) for k in legacy) > 1.0
-    # and the default plant scores better than the defaults before 2026-11-23 (Coulomb + Stribeck friction, d = 4.2 cm)
+    # and the default plant scores better than dry_friction (Coulomb + Stribeck friction, d = 4.2 cm)
     cost = calibrate.scored_cost(errors, penalty)
     assert cost < calibrate.scored_cost(errors_motion, penalty_motion)
     assert cost < 0.7 * calibrate.friction_cost(rig("dry_friction"), targets)
-    # issue 15's checks but the frequency responses: the default plant meets them all (stuck_stretched, 2026-11-27;
-    # stick_slip did too, docs/simulator.md, ninth look), stretched_sensor and quiet_ageing miss binary_signal_4's
-    # std. The cost scores one replay's FRF rather than the BLA the done-when checks use: binary_signal_2 4.5 dB
+    # the other checks but the frequency responses: the default plant meets them all (stuck_stretched, 2026-11-27;
+    # stick_slip did too), stretched_sensor and quiet_ageing miss binary_signal_4's
+    # std. The cost scores one replay's FRF rather than the BLA the printed checks use: binary_signal_2 4.5 dB
     # off for stuck_stretched (BLA 2.9 dB), 8.1 dB for stick_slip (BLA 5.1 dB), whose cost is 2.71 against 1.52.
     def unmet(errs: dict[str, float]) -> set[str]:
-        return {k for k, v in errs.items() if v > 1.0 and k not in legacy and not k.startswith("frf")}
+        return {k for k, v in errs.items() if v > 1.0 and k not in legacy and not k.startswith("FRF")}
 
     assert unmet(errors) == set()
     for plant in ("stretched_sensor", "quiet_ageing"):
@@ -102,7 +103,7 @@ def test_frf_figure_draws_a_column_per_record(tmp_path):
     # `python -m maglev.sim.calibrate --out DIR` draws the docs' figure; 3.2 in per record at 80 dpi
     from matplotlib.image import imread
 
-    from maglev.sim.bla import FrequencyResponse
+    from maglev.spectral import FrequencyResponse
 
     w = np.linspace(0.0, np.pi / 1e-3, 400)
     G = 1.0 / (1.0 - (w / 220.0) ** 2 + 0.2j * w / 220.0)
@@ -123,7 +124,7 @@ def test_a_shorter_time_base_keeps_the_mains_line_where_the_records_show_it():
     # shortens the time base must leave the line there (white_noise_4's second mode is identified next to it)
     def peak(lev):
         u = np.full(20000, 3.0)
-        return sim_vs_real.noise_psd(lev.simulate(u, seed=2).trim(0.25).y)
+        return measures.noise_psd(lev.simulate(u, seed=2).trim(0.25).y)
     base = rig()
     moved = calibrate.with_dynamics(base, t_phys=0.93 * base.params.t_phys, gamma_lower=0.5)
     assert moved.params.gamma_lower == 0.5 and moved.params.noise_line_hz > base.params.noise_line_hz
@@ -146,27 +147,25 @@ def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
 
 @needs_real
 @pytest.mark.realdata
-def test_friction_errors_are_the_printed_comparison_scaled_by_its_tolerances():
-    # the fit scores exactly what `python -m maglev.sim.calibrate` prints and the done-when checks
-    lev = Levitator(zero_at_10=True).with_params(coulomb_upper=0.04)  # not the defaults
+def test_friction_errors_are_the_declared_checks_of_the_printed_comparison():
+    # the fit scores the checks of maglev.sim.checks the calibration scores, on the same numbers the printed
+    # comparison states; only the frequency responses differ (one replay's estimate where the table has the BLA)
+    lev = rig("stick_slip").with_params(coulomb_upper=0.04)  # not a named plant
     errors, _ = calibrate.friction_errors(lev, calibrate.friction_targets(REAL))
-    cmp = sim_vs_real.compare(lev, REAL, records=("binary_signal_3",), fourth_order_records=(), frf_records=())
+    cmp = sim_vs_real.compare(lev, REAL, fourth_order_records=(checks.WHITE_RECORD,), frf_records=())
+    expected = {f"{name} {part}".strip(): (calibrate.MISSING_MODE_ERROR if np.isnan(err) else err)
+                for name, parts in checks.errors(cmp, scored_only=True).items() for part, err in parts.items()}
+    scored = {c.name for c in checks.CHECKS if c.scored
+              and (not c.name.startswith("FRF") or c.record in calibrate.SCORED_FRF_RECORDS)}
+    assert {k for k in errors if not k.startswith("FRF")} == set(expected)
+    assert {k.split(" wn")[0].split(" zeta")[0] for k in errors} == scored  # every scored check, nothing else
+    for key, value in expected.items():
+        assert errors[key] == pytest.approx(value, rel=1e-12), key
+    # and the values are what the tolerances say: the relative error over the tolerance
     (wn_r, z_r), (wn_s, z_s) = cmp.modes["binary_signal_3"]
-    tol = sim_vs_real.MODE_TOLERANCE
-    assert errors["binary_signal_3 wn"] == pytest.approx(abs(wn_s / wn_r - 1) / tol)
-    assert errors["binary_signal_3 zeta"] == pytest.approx(abs(z_s / z_r - 1) / tol)
-    assert errors["rise time"] == pytest.approx(abs(cmp.rise_sim / cmp.rise_real - 1) / sim_vs_real.RISE_TOLERANCE)
-    real, sim = cmp.std_ratio
-    assert errors["std ratio"] == pytest.approx(abs(sim / real - 1) / sim_vs_real.RATIO_TOLERANCE)
+    assert errors["mode binary_signal_3 zeta"] == pytest.approx(abs(z_s / z_r - 1) / checks.MODE_TOLERANCE)
     std_r, std_s = cmp.stds["white_noise_4"]
-    assert errors["std white_noise_4"] == pytest.approx(abs(np.log(std_s / std_r)) / np.log(sim_vs_real.STD_TOLERANCE))
-    picked = [sim_vs_real.two_modes(m) for m in cmp.armax]
-    for key, err in sim_vs_real.armax_errors(picked[1], picked[0]).items():
-        if not np.isnan(err):
-            tol = sim_vs_real.ARMAX_WN_TOLERANCE if key.endswith("wn") else sim_vs_real.ARMAX_ZETA_TOLERANCE
-            assert errors[f"armax {key}"] == pytest.approx(abs(err) / tol)
-        else:
-            assert errors[f"armax {key}"] == calibrate.MISSING_MODE_ERROR
+    assert errors["std white_noise_4"] == pytest.approx(abs(np.log(std_s / std_r)) / np.log(checks.STD_TOLERANCE))
 
 
 def test_calibrate_command_compares_the_named_plant_with_the_given_seed(monkeypatch, capsys, tmp_path):

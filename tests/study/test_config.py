@@ -43,7 +43,10 @@ def test_default_config_is_simulated_data_into_a_local_store():
 @pytest.mark.parametrize("name", SIM + REAL)
 def test_every_dataset_composes(name):
     c = task(cfg_for([f"dataset={name}"]))
-    assert c["dataset"]["name"] == name
+    if name.startswith("real_choice_"):  # the record rule's choice: a real record's config (its own name
+        assert c["dataset"]["name"] in set(REAL) - {name} or c["dataset"]["name"] == name  # without the records)
+    else:
+        assert c["dataset"]["name"] == name
     assert c["dataset"]["input_class"] in ("uniform", "binary")
     assert set(c["dataset"]["preprocess"]) == {"trim", "detrend", "decimate", "split"}
     if name in SIM:

@@ -210,11 +210,13 @@ def test_every_simulated_run_logs_the_bla_distance_the_naive_baseline_and_the_si
             m = r.data.metrics
             for key in ("g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "val_fit_naive", "val_fit_sim"):
                 assert math.isfinite(m[key]), (r.info.run_name, key)
-            assert 0 < m["g_bla_err"] < 5 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
-            # where the input explains the output every model is within 1.5 BLA norms; on uniform_narrow OE(5)
-            # follows the wander 2.9 norms away (test below)
+            assert 0 < m["g_bla_err"] < 5, r.info.run_name
+            # where the input explains the output every model is within 1.5 BLA norms and simulates at most 5 points
+            # above the BLA; on uniform_narrow OE(5) follows the wander (test below): which of its two minima the
+            # search ends in (loss 9.744e-5, simulation FIT 21.8 %; 9.879e-5, 16.2 %, 4.5 points above the BLA's 12.3)
+            # depended on the units before estimation normalised the data (y in mm instead of cm: 21.8 %)
             if ds in RANKED_DATASETS:
-                assert m["g_bla_err"] < 1.5, r.info.run_name
+                assert m["g_bla_err"] < 1.5 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
 
 
 @pytest.mark.parametrize("dataset", RANKED_DATASETS)
@@ -245,11 +247,11 @@ def test_on_small_white_noise_the_wander_owns_the_validation_output_as_on_the_ri
 def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     """The ranking's cautions (its own artifact) name an order-at-edge caution for exactly the structures whose
     mean simulation FIT, recomputed here from the runs' logged metrics, still rises by more than ORDER_MARGIN
-    from order 4 to 5. ARX always does (its noise model 1/A needs order 7 before the FIT levels off: README,
-    "Choosing the orders"). On stick_slip ARMAX, OE and BJ levelled off at 4; on the default plant since 2026-11-27
-    ARMAX and OE rise too (mean +2.2 and +1.4 points, most of it on uniform_narrow, where the higher order follows
-    more of the wander: OE 9.1 -> 16.2 %), BJ does not. Their cautions then say that the models' mean distance to
-    the BLA grows meanwhile (OE 0.43 -> 1.16); ARX's falls (0.59 -> 0.39)."""
+    from order 4 to 5 while the models' mean distance to the BLA does not grow (the orders decision's rule,
+    maglev.lab.orders). ARX's does (its noise model 1/A needs more poles; its distance to the BLA falls,
+    0.59 -> 0.39). On the default plant ARMAX and OE rise too (mean +2.2 and +1.4 points, most of it on
+    uniform_narrow, where the higher order follows more of the wander: OE 9.1 -> 16.2 %), but their distance to
+    the BLA grows (OE 0.43 -> 1.16): order 5 does not count and 4 is settled, no caution."""
     from maglev.study.cautions import ORDER_MARGIN
     from maglev.study.ranking import model_order
 
@@ -273,7 +275,8 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     for st, by_order in fits.items():
         mean = {o: sum(v) / len(v) for o, v in sorted(by_order.items())}
         assert list(mean) == [4, 5] and all(len(v) == 3 for v in by_order.values())
-        if mean[5] - mean[4] > ORDER_MARGIN:
+        d = {o: sum(v) / len(v) for o, v in dists[st].items()}
+        if mean[5] - mean[4] > ORDER_MARGIN and not d[5] > d[4]:
             rising.add(st)
     assert {k.removeprefix("order_at_edge_") for k in keys if k.startswith("order_at_edge")} == rising
     # and a rising FIT's caution says when the models move away from the BLA meanwhile, as the report's structures

@@ -2,8 +2,7 @@
 
 ``fixtures/before_layout/*.json`` hold the resolved config and the logged metrics of
 two runs (OE and ARMAX on a short simulated binary record, figures and lab steps off)
-made at the commit named in each file, before the core moved into packages
-(issue 11).  ``maglev reproduce`` re-runs a logged config the same way; this checks
+made at the commit named in each file, before the core moved into packages.  ``maglev reproduce`` re-runs a logged config the same way; this checks
 the config format and the numbers survive the move without needing that store.
 """
 
@@ -20,8 +19,7 @@ FIXTURES = sorted((Path(__file__).parent / "fixtures" / "before_layout").glob("*
 # metrics redefined on purpose after the fixtures were logged: they measure the same thing, so stay close
 REDEFINED = {  # metric: relative tolerance
     # integrated finer than the BLA's Welch frequencies, then measured on records of the validation length with
-    # the initial state fitted, against a BLA of 256 realisations (README, "Is the best linear approximation the
-    # truth?"): OE 0.215 → 0.203 on this 1.75 s validation record, ARMAX 0.643 → 0.627
+    # the initial state fitted, against a BLA of 256 realisations (docs/decisions/0004-bla-distance.md): OE 0.215 → 0.203 on this 1.75 s validation record, ARMAX 0.643 → 0.627
     "g_bla_err": 0.10,
     "g_bla_err_unweighted": 0.05,
     "bla_fit_ceiling": 0.01,  # the BLA of 256 realisations instead of 16, segments of half this 3.5 s record: 58.19 → 58.24

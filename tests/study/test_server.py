@@ -3,7 +3,7 @@ executor), tracked on an `mlflow server` on 127.0.0.1 (the ``mlflow_server`` fix
 read back as MLflow's UI reads it, through the server's REST API.
 
 One launch covers both the server mode and the cluster launcher: each costs a process start and a
-server, and a cluster sweep is what a server is for (README, "On a cluster").
+server, and a cluster sweep is what a server is for (docs/study.md, "Parallel and cluster runs").
 """
 
 from __future__ import annotations

@@ -45,8 +45,12 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
     assert parent.info.run_name == "tiny" and parent.info.status == "FINISHED"
     assert parent.data.metrics["runs_finished"] == 4
     assert {"lab/working_region.png", "lab/rise_time.png", "lab/output_spectrum.png", "lab/alpha.png",
-            "lab/lab.json"} <= artifact_paths(client, parent.info.run_id)
+            "lab/lab.json", "lab/decisions.json"} <= artifact_paths(client, parent.info.run_id)
     assert 0 < parent.data.metrics["lab.alpha_star"] <= 1
+    from maglev.lab.decision import read_decisions  # the schema the report reads: every decision, with its rule
+    decisions = read_decisions(json.loads(open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")).read()))
+    assert {"working_region", "records", "data_length", "alpha", "delay"} <= set(decisions)
+    assert decisions["records"].forced and all(d.rule and d.reasons for d in decisions.values())
     names = set()
     for r in kids:
         assert r.info.status == "FINISHED"
@@ -63,8 +67,8 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
         # ARX one step ahead is at least y(t-1): far above it on the large binary input (96 % against 83 %), no
         # better on small white noise (50 % against 49 % on these 4 s records), as on the rig's white_noise_2 (ARX
         # 76.64 % against y(t-1)'s 76.6 % at 1 ms). Output error's prediction is its simulation: on the binary input
-        # it reaches about 15-30 %, as OE(2,2,2) does on the rig's binary_signal_1-3 (docs/simulator.md, "OE
-        # simulation FIT"), and must still beat the output's mean; on small white noise it fails, as on the rig's
+        # it reaches about 15-30 %, as OE(2,2,2) does on the rig's binary_signal_1-3
+        # (docs/decisions/0002-default-plant.md), and must still beat the output's mean; on small white noise it fails, as on the rig's
         # white_noise_2 (4.7 %): the default plant's output is mostly its wander there
         binary = t["dataset"] == "binary_a025"
         if t["structure"] == "arx":
@@ -277,6 +281,30 @@ def test_reproduce_tells_rounding_from_a_real_difference_and_names_other_library
     assert main(["reproduce", r.info.run_id, "--tracking-uri", uri]) == 1
     out = capsys.readouterr().out
     assert "1 metric(s) differ" in out and "DIFFERENT" in out
+
+
+def test_the_sweep_records_its_environment_and_reproduce_names_the_packages_that_differ(sweep, capsys,
+                                                                                        monkeypatch):
+    """The parent run holds every installed package as ``name==version`` (pip's format); ``maglev reproduce``
+    under another environment (here: numpy downgraded, mlflow missing, one package more) names each one."""
+    from maglev.study import environment
+    from maglev.study.cli import main
+    from maglev.study.store import artifact_bytes
+
+    store, _, _ = sweep
+    client, _, runs = all_runs(store)
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    logged = environment.parse(artifact_bytes(client, parent.info.run_id, environment.ARTIFACT).decode())
+    now = environment.current()
+    assert logged == now and logged["numpy"] == __import__("numpy").__version__ and "mlflow" in logged
+    other = {**{k: v for k, v in now.items() if k != "mlflow"}, "numpy": "1.26.4", "extra-pkg": "0.1"}
+    monkeypatch.setattr(environment, "current", lambda: other)
+    r = next(r for r in runs if r.data.tags.get("structure") == "oe")
+    assert main(["reproduce", r.info.run_id, "--tracking-uri", f"sqlite:///{store}/mlflow.db"]) == 0
+    err = capsys.readouterr().err
+    assert (f"warning: 3 package(s) differ from the sweep's environment: extra-pkg (new, 0.1), mlflow "
+            f"{now['mlflow']} (now absent), numpy {now['numpy']} (now 1.26.4); `pip install -r "
+            f"environment/requirements.txt` (an artifact of parent run {parent.info.run_id}) rebuilds it") in err
 
 
 def test_relaunch_runs_nothing_new_and_reaps_stale_runs(sweep):

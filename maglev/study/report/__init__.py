@@ -116,6 +116,8 @@ def rank_and_report(uri: str, experiment: str, parent: str | None, structure: st
     2-core machine, where loading the models, drawing the ranking's figures and rebuilding the report
     took 4.4–6.1 s for an unchanged sweep).
     """
+    from maglev.study.decisions import with_orders
+
     sweep = load_sweep(uri, experiment, parent)
     if reuse:
         quick = compute(sweep, structure, draw=False)
@@ -127,6 +129,9 @@ def rank_and_report(uri: str, experiment: str, parent: str | None, structure: st
                   f"(unchanged)\nMLflow UI:   {ui_hint(sweep, previous)}", flush=True)
             return previous, path.resolve()
     ranking = compute(sweep, structure)
+    decisions = with_orders(artifact_json(sweep.client, sweep.parent_id, "lab/decisions.json"), ranking.table)
+    if decisions:  # the last decision of lab/decisions.json, made from the ranked runs
+        log_files(sweep.client, sweep.parent_id, {"lab/decisions.json": decisions})
     run_id = ranking_run_for(ranking)
     path = write_report(ranking, run_id, out)
     print(top_text(ranking))

@@ -1,0 +1,90 @@
+"""The record rules on constructed records with known answers: start transient, split, α, choice."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from maglev.lab.records import (alpha_decision, assess, choose_records, length_decision, length_split,
+                                start_transient, switching_rate)
+from maglev.lab.signals import random_binary, uniform_noise
+
+TS = 0.001
+REGION = (1.5, 3.5)
+CURVE = (7.9, 9.3)
+
+
+def _noise(n, level, sd=0.01, seed=0):
+    return level + sd * np.random.default_rng(seed).standard_normal(n)
+
+
+def test_a_level_shift_at_the_start_is_trimmed_where_it_settles():
+    y = _noise(20000, 8.26)
+    y[:1500] -= 0.27  # the first 1.5 s at another level, as white_noise_2 starts
+    tr = start_transient(y, TS)
+    assert tr.seconds == pytest.approx(1.5) and tr.outside == tuple(range(6))
+
+
+def test_a_lift_off_spike_costs_one_block_and_a_later_stray_block_none():
+    y = _noise(20000, 8.6)
+    y[:40] += 0.7  # a 40 ms spike
+    y[8000:8250] += 0.3  # one stray block at 8 s: not a start transient
+    assert start_transient(y, TS).seconds == pytest.approx(0.25)
+    assert start_transient(_noise(20000, 8.6, seed=3), TS).samples == 0
+
+
+@pytest.mark.parametrize(("seconds", "split", "met"), [(24.0, 0.5, True), (19.75, 10 / 19.75, True),
+                                                       (15.25, 10 / 17, False)])
+def test_the_split_meets_10_s_and_7_s_when_the_record_allows(seconds, split, met):
+    assert length_split(int(round(seconds / TS)), TS) == (pytest.approx(split), met)
+
+
+@pytest.mark.parametrize("alpha", [0.25, 0.5, 0.75, 1.0])
+def test_alpha_is_the_switching_rate_per_recorded_sample(alpha):
+    u = random_binary(20000, alpha, 1.5, 3.5, seed=1)
+    assert switching_rate(u) == pytest.approx(alpha, abs=0.02)
+    assert switching_rate(u[::2]) != pytest.approx(alpha, abs=0.02) or alpha == 0.5  # not on a decimated axis
+
+
+def test_alpha_decision_sentence_flips_when_the_rate_leaves_the_tolerance():
+    good = alpha_decision([{"dataset": "b", "alpha": 0.251, "design": 0.25, "samples": 20000}])
+    bad = alpha_decision([{"dataset": "b", "alpha": 0.30, "design": 0.25, "samples": 20000}])
+    assert "within 0.02" in good.reasons[0] and not good.cautions
+    assert "off by 0.050" in bad.cautions[0] and not bad.reasons
+
+
+def _record(name, cls, u, y):
+    return assess(name, cls, u, y, TS, REGION, CURVE)
+
+
+def test_a_record_whose_output_leaves_the_curve_is_refused_even_with_the_best_input():
+    n = 20000
+    u_wide = uniform_noise(n, 1.5, 3.5, seed=1)
+    u_narrow = uniform_noise(n, 2.2, 2.8, seed=2)
+    inside = _noise(n, 8.6, 0.1)
+    leaving = inside.copy()
+    leaving[::4] = 10.5  # 25 % of the output above the curve's top
+    a = [_record("wide_leaves", "uniform", u_wide, leaving), _record("wide", "uniform", u_wide, inside),
+         _record("narrow", "uniform", u_narrow, inside), _record("bin", "binary", random_binary(n, 0.25, 1.5, 3.5, 3),
+                                                                 inside)]
+    d = choose_records(a, alpha_star=0.25, wanted={"uniform": 2, "binary": 1})
+    assert d.choice == {"uniform": ["wide", "narrow"], "binary": ["bin"]} and not d.forced
+    assert any(r.startswith("wide_leaves is refused: 25.0 % of its output") for r in d.reasons)
+    assert any(r.startswith("wide wins (uniform #1)") for r in d.reasons)
+    # the same records with the output back inside: the wide record wins on its score, the narrow one loses
+    b = [_record("wide_leaves", "uniform", u_wide, inside)] + a[1:]
+    flipped = choose_records(b, alpha_star=0.25)
+    assert flipped.choice["uniform"][0] in {"wide_leaves", "wide"} and "narrow" not in flipped.choice["uniform"]
+    assert any(r.startswith("narrow loses") for r in flipped.reasons)
+    forced = choose_records(a, alpha_star=0.25, forced=["wide_leaves", "narrow", "bin"])
+    assert forced.forced and forced.choice["forced"] == ["bin", "narrow", "wide_leaves"]
+    assert any("forced by the config although the rule refuses it" in c for c in forced.cautions)
+
+
+def test_length_decision_cautions_only_when_the_minimum_is_not_met():
+    ok = {"dataset": "a", "transient_s": 0.25, "trim_s": 0.25, "split": 0.506, "est_s": 10.0, "val_s": 9.75}
+    short = {**ok, "dataset": "b", "est_s": 8.97, "val_s": 6.28}
+    assert length_decision([ok]).cautions == []
+    d = length_decision([ok, short])
+    assert len(d.cautions) == 1 and d.cautions[0].startswith("b: 8.97 s estimation")
+    assert d.reasons[0].endswith("the lab's minimum is met.") and d.reasons[1].endswith("below the lab's minimum.")

@@ -1,0 +1,75 @@
+"""The lab's decisions on the real 2022 records and in the study's configs (skip without ../shared)."""
+
+from __future__ import annotations
+
+import pytest
+
+from maglev.refdata import DESIGN_ALPHA, RECORDS
+from maglev.study import schema  # noqa: F401  (registers the resolvers)
+
+from .harness import CONF
+
+
+def test_every_2022_record_has_a_dataset_config():
+    configs = {p.stem for p in (CONF / "dataset").glob("real_*.yaml")}
+    assert {f"real_{r}" for r in RECORDS if r != "working_region"} <= configs
+
+
+@pytest.fixture
+def real_decisions(refdata):
+    from maglev.study.decisions import assessed_2022, real_region, records_2022
+
+    return real_region(str(refdata), None), assessed_2022(str(refdata), None), records_2022(str(refdata), None)
+
+
+def test_real_working_region_ends_below_the_plateau(real_decisions):
+    wr, _, _ = real_decisions
+    assert (wr.u_min, wr.u_max) == (1.5, 3.5)
+    assert wr.y_bar[wr.hi] < wr.plateau_level - wr.plateau_margin * (wr.y_bar.max() - wr.y_bar.min())
+
+
+def test_real_records_chosen_keep_their_output_on_the_static_curve(real_decisions):
+    _, assessed, dec = real_decisions
+    by = {a.name: a for a in assessed}
+    chosen = [n for names in dec.choice.values() for n in names]
+    assert len(dec.choice["uniform"]) == 2 and len(dec.choice["binary"]) == 1
+    assert all(by[n].output_outside <= 0.02 and not by[n].refusals for n in chosen)
+    # the issue's counter-examples: binary_signal_2's output leaves the curve, white_noise_2 is off-centre
+    assert by["real_binary_signal_2"].refusals and "real_binary_signal_2" not in chosen
+    assert "real_white_noise_2" not in chosen and by["real_white_noise_2"].offset > by[dec.choice["uniform"][1]].offset
+
+
+def test_real_binary_records_alpha_within_002_of_design(real_decisions):
+    _, assessed, _ = real_decisions
+    for a in assessed:
+        if a.input_class == "binary":
+            assert a.alpha == pytest.approx(DESIGN_ALPHA[a.name.removeprefix("real_")], abs=0.02), a.name
+
+
+def test_real_choice_configs_resolve_to_the_rule_and_meet_the_length_or_say_why(refdata, monkeypatch):
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from maglev.study.config import plain_config
+    from maglev.study.decisions import length_rows, records_2022
+    from maglev.lab.records import length_decision
+
+    monkeypatch.setenv("MAGLEV_REFDATA", str(refdata))
+    names = []
+    with initialize_config_dir(version_base="1.3", config_dir=str(CONF)):
+        for stem in ("real_choice_uniform_1", "real_choice_uniform_2", "real_choice_binary_1"):
+            c = compose("config", overrides=[f"dataset={stem}", "lab=real"])
+            names.append(plain_config(OmegaConf.masked_copy(c, [k for k in c if k != "hydra"]))["dataset"])
+    rule = records_2022(str(refdata), "el2820_maglev_2022/working_region.mat").choice
+    assert [d["name"] for d in names] == rule["uniform"] + rule["binary"]
+    dec = length_decision(length_rows(names, str(refdata)))
+    for name, part in dec.choice.items():
+        met = part["est_s"] >= 10 and part["val_s"] >= 7
+        assert met or any(c.startswith(f"{name}: ") and "too short" in c for c in dec.cautions)
+    with initialize_config_dir(version_base="1.3", config_dir=str(CONF)):  # an override forces the trim
+        c = compose("config", overrides=["dataset=real_white_noise_4", "dataset.preprocess.trim=2000"])
+    forced = plain_config(OmegaConf.masked_copy(c, [k for k in c if k != "hydra"]))["dataset"]
+    assert forced["preprocess"]["trim"] == 2000
+    d = length_decision(length_rows([forced], str(refdata)))
+    assert d.forced and d.reasons[0].startswith("The trim of real_white_noise_4 is set by the config")
+    assert not length_decision(length_rows(names, str(refdata))).forced
