@@ -1,6 +1,13 @@
 """Where a study run's time goes, and how long the default lab sweep takes.
 
     python bench/study_overhead.py [--repeats 5] [--structures arx,oe,armax,bj] [--sweep]
+    python bench/study_overhead.py --launch [--repeats 5] [--baseline CHECKOUT] [--markdown docs/benchmarks-study.md]
+
+``--launch`` times only what a user waits for, each as a process and as the median of the repeats:
+the default sweep with every BLA cached (into a fresh store), the seconds from the command to its
+first line of output, and the relaunch of the finished sweep (issue 39's targets: 5 s, 20 s, 5 s).
+With ``--baseline`` another checkout (``git archive main | tar -x -C DIR``) takes turns with this one
+and the table gives the ratio of the medians; ``--markdown`` writes the table to a file.
 
 Per run (the default lab dataset uniform_wide, 24 s; the job's own functions): data
 (simulate + preprocess, cached per process in a sweep, so shown apart), estimation
@@ -26,6 +33,7 @@ import argparse
 import os
 import pickle
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -132,12 +140,133 @@ def sweep_time() -> dict[str, float]:
             "load_before": load, "load_after": os.getloadavg()[0]}
 
 
+# ---------------------------------------------------------------------------- what a user waits for
+TARGET_RELAUNCH_S = 5.0  # issue 39: relaunching the finished default sweep
+TARGET_DEFAULT_S = 20.0  # issue 39: the default sweep with every BLA cached
+TARGET_FIRST_LINE_S = 5.0  # issue 39: its first line of progress
+
+
+def launch_process(study: Path, store: Path) -> dict[str, float]:
+    """``python STUDY -m +sweep=lab`` into ``store`` as a process: wall seconds, CPU seconds (the process and
+    its children: the renderer, the BLA process), and seconds from the command to its first line of output."""
+    uri = f"sqlite:///{store}/mlflow.db"
+    cmd = [sys.executable, str(study), "-m", "+sweep=lab", f"tracking.uri={uri}",
+           f"tracking.artifact_location={store}/art", f"hydra.sweep.dir={store}/multirun",
+           f"hydra.callbacks.maglev_rank.report_dir={store}/reports"]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    tic = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=store)
+    first, out = None, []
+    for line in proc.stdout:
+        if first is None and line.strip():
+            first = time.perf_counter() - tic
+        out.append(line)
+    code = proc.wait()
+    wall = time.perf_counter() - tic
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if code:
+        raise SystemExit(f"{study} failed ({code}):\n{''.join(out)[-3000:]}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"wall": wall, "cpu": cpu, "first": first if first is not None else wall}
+
+
+def launch_times(studies: dict[str, Path], repeats: int, sweeps: int) -> dict[str, dict[str, list[float]]]:
+    """For each checkout (name -> its study.py), taking turns: ``sweeps`` default sweeps into fresh stores
+    (BLAs cached by a warm-up sweep first, whose first line counts too) and ``repeats`` relaunches of a
+    finished one.  Each time is also printed to stderr as it is measured."""
+    times = {name: {k: [] for k in ("sweep", "sweep_cpu", "first", "relaunch", "relaunch_cpu", "relaunch_first")}
+             for name in studies}
+
+    def note(name: str, what: str, t: dict) -> None:
+        print(f"{name}: {what} {t['wall']:.1f} s wall, {t['cpu']:.1f} s CPU, first line {t['first']:.1f} s",
+              file=sys.stderr, flush=True)
+
+    with tempfile.TemporaryDirectory(prefix="bench-launch-") as tmp:
+        finished = {}
+        for name, study in studies.items():  # warm-up: caches the BLAs; its store is the finished sweep
+            finished[name] = Path(tmp) / f"{name}-finished".replace(" ", "-")
+            finished[name].mkdir()
+            t = launch_process(study, finished[name])
+            times[name]["first"].append(t["first"])
+            note(name, "warm-up sweep", t)
+        for i in range(max(repeats, sweeps)):
+            for name, study in studies.items():
+                if i < sweeps:
+                    store = Path(tmp) / f"{name}-{i}".replace(" ", "-")
+                    store.mkdir()
+                    t = launch_process(study, store)
+                    note(name, "default sweep", t)
+                    times[name]["sweep"].append(t["wall"])
+                    times[name]["sweep_cpu"].append(t["cpu"])
+                    times[name]["first"].append(t["first"])
+                    shutil.rmtree(store)
+                if i >= repeats:
+                    continue
+                t = launch_process(study, finished[name])
+                note(name, "relaunch", t)
+                times[name]["relaunch"].append(t["wall"])
+                times[name]["relaunch_cpu"].append(t["cpu"])
+                times[name]["relaunch_first"].append(t["first"])
+    return times
+
+
+def launch_table(times: dict[str, dict[str, list[float]]]) -> str:
+    """Markdown: medians per checkout (how many measurements in the second column), the ratio of the second
+    checkout's to the first's (when two) and the target."""
+    names = list(times)
+    rows = [("relaunch of the finished default sweep, wall s", "relaunch", TARGET_RELAUNCH_S),
+            ("relaunch, CPU s", "relaunch_cpu", None),
+            ("default sweep with the BLAs cached, wall s", "sweep", TARGET_DEFAULT_S),
+            ("default sweep, CPU s", "sweep_cpu", None),
+            ("first line of the default sweep, s after the command", "first", TARGET_FIRST_LINE_S)]
+    head = "| median | of | " + " | ".join(names)
+    head += " | ratio |" if len(names) == 2 else " |"
+    lines = [head + " target |", "|---|---|" + "---|" * (len(names) + (len(names) == 2) + 1)]
+    for label, key, target in rows:
+        if not all(times[n][key] for n in names):
+            continue
+        med = [statistics.median(times[n][key]) for n in names]
+        cells = [f"{m:.1f}" for m in med]
+        if len(names) == 2:
+            cells.append(f"{med[1] / med[0]:.2f}")
+        verdict = "" if target is None else f"≤ {target:g} s: {'met' if med[-1] <= target else 'not met'}"
+        lines.append(f"| {label} | {len(times[names[-1]][key])} | " + " | ".join(cells) + f" | {verdict} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--structures", default="arx,oe,armax,bj")
     p.add_argument("--sweep", action="store_true", help="also time the default lab sweep as a process")
+    p.add_argument("--launch", action="store_true",
+                   help="only time what a user waits for: the default sweep with BLAs cached, its first line of "
+                        "progress and the relaunch of the finished sweep (medians of --repeats, as processes)")
+    p.add_argument("--baseline", type=Path, metavar="CHECKOUT",
+                   help="with --launch: another checkout (e.g. git archive of main) timed in turn with this one; "
+                        "the table gives this one's medians over the baseline's")
+    p.add_argument("--markdown", type=Path, metavar="FILE", help="with --launch: also write the table to FILE")
+    p.add_argument("--sweeps", type=int, metavar="N",
+                   help="with --launch: default sweeps into fresh stores (default: --repeats; each is ~30 s)")
     a = p.parse_args(argv)
+    if a.launch:
+        studies = {"this checkout": REPO / "study.py"}
+        if a.baseline:
+            studies = {"baseline": a.baseline.resolve() / "study.py", **studies}
+        load = os.getloadavg()
+        sweeps = a.repeats if a.sweeps is None else a.sweeps
+        times = launch_times(studies, a.repeats, sweeps)
+        table = launch_table(times)
+        cores = os.cpu_count()
+        note = (f"`python bench/study_overhead.py --launch --repeats {a.repeats}"
+                f"{f' --sweeps {sweeps}' if sweeps != a.repeats else ''}"
+                f"{' --baseline CHECKOUT' if a.baseline else ''}`: {cores} cores, load average "
+                f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after; single-threaded BLAS"
+                f"{'; the checkouts take turns' if a.baseline else ''}.\n")
+        print(note + "\n" + table)
+        if a.markdown:
+            a.markdown.write_text("# What a user of the study waits for\n\nWritten by " + note + "\n" + table)
+        return 0
     structures = a.structures.split(",")
     with tempfile.TemporaryDirectory() as tmp:
         uri, art = f"sqlite:///{tmp}/mlflow.db", f"{tmp}/artifacts"

@@ -41,13 +41,68 @@ LONGEST_FIRST = (
 )
 
 
+# The development loop `python -m pytest -q -m "not slow"` (docs/development.md) leaves out the tests that take
+# seconds each: end-to-end sweeps and launches as processes, servers, the simulator's calibration, estimation on
+# the real records' grids, Monte-Carlo.  Files marked slow themselves (pytestmark) are not repeated here; these
+# are marked here, in one place, from the durations of a full `-m "not slow"` run (a whole file, or one test with
+# all its parameters).  The full suite runs them all.
+SLOW = (
+    "study/test_sweep.py",               # a sweep shared by the file, maglev ui, single runs
+    "study/test_resume.py",              # a ranked sweep shared by the file, a relaunch as a process
+    "sim/test_calibrate.py",             # fitting the simulator
+    "sim/test_sim_vs_real.py",           # simulating every real record
+    "estimation/test_nested_orders.py",  # the nested-order grids on real data
+    "estimation/test_estimate_real.py",  # BJ on the real records
+    "study/test_config.py::test_a_sweep_estimates_the_blas_its_runs_need_in_the_background_once",
+    "study/test_config.py::test_structures_and_order_overrides",
+    "study/test_config.py::test_sweep_configs_declare_the_sweep",
+    "study/test_config.py::test_semantic_errors_are_refused_before_a_run",
+    "study/test_config.py::test_simulated_datasets_give_the_lab_minimum_of_estimation_and_validation_data",
+    "study/test_config.py::test_a_mistake_in_a_launch_creates_no_run",
+    "study/test_faults.py::test_a_closed_port_fails_at_once_in_one_line_naming_the_uri",
+    "study/test_faults.py::test_a_sweep_with_an_impossible_config_is_refused_before_any_run",
+    "study/test_faults.py::test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_config",
+    "study/test_shutdown.py::test_a_signal_in_a_commit_is_raised_after_it_and_the_store_stays_writable",
+    "study/test_cli.py::test_maglev_command_answers_a_missing_store_in_one_line",
+    "study/test_cli.py::test_study_py_refuses_a_typo_with_the_key_and_creates_no_run",
+    "study/test_cautions.py::test_ranking_and_report_follow_the_residual_tests_both_ways",
+    "study/test_ranking.py::test_missing_store_unknown_and_empty_experiment_are_clear_errors",
+    "study/test_ranking.py::test_ranking_twice_reuses_the_ranking_run_and_force_logs_a_new_one",
+    "study/test_ranking.py::test_rank_cli_logs_the_ranking_run",
+    "study/test_ranking.py::test_structure_option_and_its_errors",
+    "structures/test_registry.py::test_toy_structure_runs_through_a_sweep_and_the_ranking",
+    "test_bench.py::test_benchmark_script_runs",
+    "test_layers.py::test_only_the_study_layer_reaches_hydra_omegaconf_or_mlflow",
+    "test_layers.py::test_import_maglev_pulls_in_no_hydra_omegaconf_mlflow_or_matplotlib",
+    "test_layers.py::test_identification_core_does_not_reach_matplotlib",  # fresh interpreters measure imports
+    "test_layers.py::test_the_rules_see_a_heavy_import_through_a_library",
+    "study/test_render.py::test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones",
+    "study/test_render.py::test_drain_draws_the_runs_the_busy_renderer_has_not_started",
+    "study/test_render.py::test_a_drawing_error_is_tagged_and_the_run_still_finishes",
+    "estimation/test_estimate.py::test_monte_carlo_spread_matches_reported_covariance",
+    "sim/test_bla.py::test_blas_of_several_classes_are_the_estimates_bla_makes_one_class_at_a_time",
+    "sim/test_bla.py::test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies",
+    "sim/test_labdata.py::test_labdata_cli_writes_loadable_files",
+    "sim/test_plant.py::test_batch_simulation_is_the_loop_over_records",
+)
+
+
+def is_slow(item: pytest.Item) -> bool:
+    """Whether ``SLOW`` names the item's file or its test function."""
+    try:
+        path = item.path.relative_to(TESTS).as_posix()
+    except ValueError:
+        return False
+    return path in SLOW or f"{path}::{item.name.split('[')[0]}" in SLOW
+
+
 def pytest_configure(config: pytest.Config) -> None:
     if hasattr(config.option, "loadscopereorder"):  # pytest-xdist: keep the collection order below
         config.option.loadscopereorder = False
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Files of ``LONGEST_FIRST`` first, in that order; the rest after them, as collected."""
+    """Files of ``LONGEST_FIRST`` first, in that order; the rest after them, as collected; ``SLOW`` marked slow."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
 
     def key(item: pytest.Item) -> int:
@@ -57,6 +112,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             return len(rank)
 
     items.sort(key=key)
+    for item in items:
+        if is_slow(item):
+            item.add_marker(pytest.mark.slow)
 
 
 @pytest.fixture

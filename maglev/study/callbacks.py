@@ -33,8 +33,17 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, credentials, datasets, environment, render, shutdown, tracking
-from maglev.study.config import StudyConfigError, check, check_lab, task_config
+from maglev.study import credentials, shutdown
+from maglev.study.config import StudyConfigError, check, check_lab, config_hash, task_config
+from maglev.study.lazy import lazy_module
+
+# imported on first use: a relaunch with nothing to do (maglev.study.resume) ends before MLflow is imported
+claims = lazy_module("maglev.study.claims")
+datasets = lazy_module("maglev.study.datasets")
+environment = lazy_module("maglev.study.environment")
+progress = lazy_module("maglev.study.progress")
+render = lazy_module("maglev.study.render")
+tracking = lazy_module("maglev.study.tracking")
 
 log = logging.getLogger("maglev.study")
 
@@ -118,12 +127,16 @@ def check_sweep(config: DictConfig) -> list[dict]:
     """Compose and :func:`~maglev.study.config.check` every job of the sweep; the first impossible one
     raises :class:`SweepRefused` naming the job and the key.  Returns the jobs' configs (plain, resolved).
 
-    Composing a job costs Hydra ≈ 0.2 s, so each distinct choice of config groups
+    Composing a job costs Hydra ≈ 0.1 s of CPU, so each distinct choice of config groups
     (``dataset=…``, ``structure=…``) is composed once and plain value overrides
-    (``structure.order=3``) are applied to a copy, as composition would apply them.
+    (``structure.order=3``) are applied to a copy, as composition would apply them: a relaunch with
+    nothing to do stops after these.  On the basic launcher the sweeper's validation then composes each
+    job once for the launcher as well (:func:`maglev.study.compose.memoise`).
     """
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from maglev.study.compose import memoise
 
     jobs = sweep_jobs(config)
     if not jobs or not GlobalHydra.instance().is_initialized():
@@ -152,7 +165,51 @@ def check_sweep(config: DictConfig) -> list[dict]:
             shown = " ".join(o if len(o) <= 80 else f"{o[:60]}…" for o in overrides
                              if not o.lstrip("+~").startswith(("tracking", "hydra")))
             raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
+    if str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
+        memoise(loader)
     return checked
+
+
+class NothingToDo(SystemExit):
+    """The relaunch of a finished sweep finds nothing to run, reference, rank or report: exit status 0."""
+
+
+def ranking_settings(config: DictConfig) -> dict | None:
+    """The ranking callback's settings (``structure``, ``report_dir``), None when the sweep is not ranked."""
+    for cb in (config.hydra.get("callbacks") or {}).values():
+        if str(cb.get("_target_", "")).endswith(".RankingCallback"):
+            return {"structure": cb.get("structure"), "report_dir": cb.get("report_dir")}
+    return None
+
+
+def survey(config: DictConfig, task: dict, jobs: list[dict]):
+    """Read the store once before any job (:func:`maglev.study.resume.survey`; no MLflow import) and raise
+    :class:`NothingToDo` when every job's config is FINISHED in this sweep and its ranking and report are
+    those of these runs.  Otherwise returns how many of the jobs' configs have a FINISHED run (None: not
+    known)."""
+    from maglev.paths import reports_dir
+    from maglev.study.resume import survey as read_store
+
+    if not jobs:
+        return None
+    sid, name = sweep_id(config, task), task["study"]["name"]
+    ranking = ranking_settings(config)
+    report = None
+    if ranking is not None:
+        report = Path(ranking["report_dir"]) if ranking["report_dir"] else reports_dir()
+        if report.suffix.lower() != ".html":
+            report = report / f"{name}-{sid[:8]}.html"  # maglev.study.ranking.report_name
+    hashes = [config_hash(j) for j in jobs]
+    found = read_store(task["tracking"]["uri"], task["tracking"]["experiment"], sid, hashes,
+                       bool(task["lab"]["enabled"]), ranking, report, bool(task["tracking"]["reap"]))
+    done = found.done
+    if done is None or not all(j["study"]["skip_finished"] for j in jobs):
+        return found.finished
+    ranked = (f"; ranking run {done.ranking_run} ranked these {done.ranked} runs; report {done.report}"
+              if done.ranking_run else "")
+    log.info("sweep %r: nothing to do: the %d configs of its %d jobs all have FINISHED runs under parent run "
+             "%s%s (study.skip_finished=false runs them again)", name, done.configs, len(jobs), done.parent, ranked)
+    raise NothingToDo(0)
 
 
 class SweepCallback(Callback):
@@ -177,6 +234,9 @@ class SweepCallback(Callback):
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
         credentials.redact_logs()  # Hydra logs every job's overrides, a URI's password included
         task = task_config(config)
+        name = task["study"]["name"]
+        size = sweep_size(config)
+        log.info("sweep %r: %s jobs; checking their configs", name, size or "?")  # the first line, within seconds
         jobs = check_sweep(config)
         try:
             check_lab(task)
@@ -184,7 +244,17 @@ class SweepCallback(Callback):
             raise SweepRefused(f"maglev: sweep refused before any run: {exc}") from None
         task["tracking"]["uri"] = credentials.to_env(task["tracking"]["uri"])
         HydraConfig.instance().set_config(config)  # composing the jobs' configs replaced it
-        datasets.prepare_blas(jobs)  # in the background, while the store and the lab steps are made
+        finished = survey(config, task, jobs)
+        if finished is not None:
+            configs = len({config_hash(j) for j in jobs})
+            skipping = all(j["study"]["skip_finished"] for j in jobs)
+            log.info("sweep %r: %d configs checked; %d to run, %d FINISHED already%s", name, configs,
+                     configs - finished if skipping else len(jobs), finished, " (skipped)" if skipping else "")
+        missing = datasets.missing_blas(jobs)
+        if missing:
+            log.info("estimating the best linear approximations of %s in the background (once; then cached); "
+                     "a run that needs one waits for it", ", ".join(ds["name"] for ds in missing))
+            datasets.prepare_blas(jobs, missing)  # while the store and the lab steps are made
         shutdown.mark_launcher()  # the processes started from here end with this one
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
             # its process imports while the store and the lab steps are made; MLflow's HTTP bounds first
@@ -193,7 +263,6 @@ class SweepCallback(Callback):
         self.client, self.exp_id = client, exp_id
         sid = sweep_id(config, task)
         sweep_dir = Path(config.hydra.sweep.dir).resolve()
-        name = task["study"]["name"]
         self.lock = claims.sweep_lock_path(task["tracking"]["uri"], sweep_dir, sid)
         claims.acquire_sweep(self.lock, lambda holder: log.warning(
             "sweep %r is being run by %s; waiting for it to end (its finished configs are then skipped)",
@@ -220,14 +289,16 @@ class SweepCallback(Callback):
         sweep_dir.mkdir(parents=True, exist_ok=True)
         (sweep_dir / tracking.PARENT_FILE).write_text(self.parent)
         os.environ[tracking.PARENT_ENV] = self.parent
-        size = sweep_size(config)
         if size:
             os.environ[tracking.SIZE_ENV] = str(size)
         atexit.register(self._abort)
         log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
                  "new" if self.fresh else "resumed", credentials.public(task["tracking"]["uri"]))
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
+            log.info("sweep %r: the lab steps (working region, rise time and Ts, output spectrum, alpha*) on its "
+                     "parent run", name)
             self._log_lab(task, jobs)
+        os.environ[progress.START_ENV] = str(time.time())  # the runs start: their ETA counts from here
 
     def _log_environment(self) -> None:
         """``environment/requirements.txt``: what `pip install -r` needs to rebuild this environment. Like the
@@ -369,10 +440,11 @@ class RankingCallback(Callback):
         if parent is None:
             log.warning("ranking skipped: no parent run id in %s", config.hydra.sweep.dir)
             return
+        log.info("sweep %r: ranking its runs and writing the report", task["study"]["name"])
         try:
             self._wait_for_references(task["tracking"], parent)
             rank_and_report(task["tracking"]["uri"], task["tracking"]["experiment"], parent,
-                            self.structure, self.report_dir)
+                            self.structure, self.report_dir, reuse=True)
         except SweepError as exc:
             log.warning("ranking/report not made: %s", exc)
         except Exception as exc:  # noqa: BLE001 — a report bug must not fail a finished sweep

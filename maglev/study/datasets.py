@@ -99,18 +99,10 @@ def dataset_bla(ds: dict):
     return bla(sim_spec(ds), rig(plant_name(ds)), preprocess=_bla_preprocess(ds))
 
 
-def prepare_blas(configs: list[dict]):
-    """Estimate, in a background process, the BLAs that the runs of these job configs will need and the
-    disk cache lacks, in the jobs' order; returns the process (None when there is nothing to do).
-
-    A 24 s class's BLA takes ≈ 15 s (2-core machine, 2026-11-27), which the first run of each dataset
-    would otherwise pay on the sweep's critical path; started before the store and the lab steps, the
-    background has the first one well on its way by then and the others while the runs go on (a run
-    that needs one still in the making waits for it: :func:`maglev.sim.bla.bla` locks each cache entry
-    while estimating it).
-    """
+def missing_blas(configs: list[dict]) -> list[dict]:
+    """The simulated datasets of these job configs whose BLA their runs need and the disk cache lacks, in the
+    jobs' order (each once)."""
     import json
-    import multiprocessing
 
     from maglev.sim.bla import is_cached
     from maglev.sim.plant import rig
@@ -120,8 +112,24 @@ def prepare_blas(configs: list[dict]):
         ds = cfg["dataset"]
         if ds["source"] == "sim" and cfg["study"]["true_plant"]:
             wanted.setdefault(json.dumps(ds, sort_keys=True), ds)
-    missing = [ds for ds in wanted.values()
-               if not is_cached(sim_spec(ds), rig(plant_name(ds)), preprocess=_bla_preprocess(ds))]
+    return [ds for ds in wanted.values()
+            if not is_cached(sim_spec(ds), rig(plant_name(ds)), preprocess=_bla_preprocess(ds))]
+
+
+def prepare_blas(configs: list[dict], missing: list[dict] | None = None):
+    """Estimate, in a background process, the BLAs that the runs of these job configs will need and the
+    disk cache lacks (``missing``, when :func:`missing_blas` was asked already), in the jobs' order;
+    returns the process (None when there is nothing to do).
+
+    A 24 s class's BLA takes ≈ 15 s (2-core machine, 2026-11-27), which the first run of each dataset
+    would otherwise pay on the sweep's critical path; started before the store and the lab steps, the
+    background has the first one well on its way by then and the others while the runs go on (a run
+    that needs one still in the making waits for it: :func:`maglev.sim.bla.bla` locks each cache entry
+    while estimating it).
+    """
+    import multiprocessing
+
+    missing = missing_blas(configs) if missing is None else missing
     if not missing:
         return None
     proc = multiprocessing.get_context("spawn").Process(target=_estimate_blas, args=(missing,), daemon=True,

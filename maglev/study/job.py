@@ -22,6 +22,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import claims, credentials, render, tracking
+from maglev.study import progress as progress_
 from maglev.study.config import StudyConfigError, check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
 from maglev.validation import format_p
@@ -45,12 +46,32 @@ def hydra_context() -> dict:
             "launcher": str(hc.launcher.get("_target_", ""))}
 
 
+def sweep_size() -> int | None:
+    """The running sweep's number of jobs (set by the sweep callback), None if unknown."""
+    total = os.environ.get(tracking.SIZE_ENV, "")
+    return int(total) if total.isdigit() else None
+
+
 def progress(ctx: dict) -> str:
     """``[k/total] `` for the k-th job of a sweep of known size (``[k] `` if unknown), else ''."""
     if ctx.get("job_num") is None:
         return ""
-    total = os.environ.get(tracking.SIZE_ENV)
+    total = sweep_size()
     return f"[{ctx['job_num'] + 1}/{total}] " if total else f"[{ctx['job_num'] + 1}] "
+
+
+def time_left(ctx: dict) -> str:
+    """What is left of the sweep after this job (:func:`maglev.study.progress.time_left`)."""
+    return progress_.time_left(ctx.get("job_num"), sweep_size(), ctx.get("launcher", "").endswith("BasicLauncher"))
+
+
+def wait_for_bla(plain: dict, label: str) -> None:
+    """Say so when this job's run will wait for a best linear approximation still being estimated."""
+    from maglev.study.datasets import missing_blas
+
+    if plain["dataset"]["source"] == "sim" and plain["study"]["true_plant"] and missing_blas([plain]):
+        log.info("%s: waiting for the best linear approximation of %s (being estimated in the background)",
+                 label, plain["dataset"]["name"])
 
 
 def run_tags(cfg: dict, chash: str, ctx: dict, parent: str | None) -> dict:
@@ -192,6 +213,8 @@ def run(cfg: DictConfig) -> float | None:
         return None
     try:
         tracking.log_batch(client, run_id, params={k: credentials.redact(v) for k, v in flatten(plain).items()})
+        if ctx.get("job_num") is not None:
+            wait_for_bla(plain, label)
         out = identify(plain)
         files = {"config/config.yaml": config_yaml,
                  "model/model.json": out.model.to_json(), "model/summary.txt": out.model.summary(),
@@ -211,7 +234,8 @@ def run(cfg: DictConfig) -> float | None:
             render.submit(plain["tracking"]["uri"], run_id, out.figure_inputs)  # FINISHED once drawn
         else:
             render.draw_and_finish(plain["tracking"]["uri"], run_id, out.figure_inputs)
-        log.info("%s: val_fit %.2f %%  (run %s)", label, out.metrics["val_fit"], run_id)
+        progress_.run_done()
+        log.info("%s: val_fit %.2f %%  (run %s)%s", label, out.metrics["val_fit"], run_id, time_left(ctx))
         return out.metrics["val_fit"]
     except BaseException as exc:  # noqa: BLE001 — record every way of dying
         # submitit raises UncompletedJobError (an Exception) when a job ran out of requeues: killed, not failed

@@ -71,7 +71,8 @@ def test_two_launches_at_once_run_every_config_once_into_a_fresh_then_an_existin
     assert [p.wait(timeout=600) for p in procs] == [0, 0], (tmp_path / "a1.log").read_text()[-3000:]
     logs = "".join((tmp_path / f"a{i}.log").read_text() for i in range(2))
     # each config identified once in all (the second launch waits for the first, or skips what it claimed)
-    assert logs.count("val_fit") == 2 and logs.count("skip ") == 2, logs
+    # (or, when it starts after the first has ranked, stops at once: nothing to do)
+    assert logs.count("val_fit") == 2 and (logs.count("skip ") == 2 or logs.count("nothing to do") == 1), logs
     assert "Callback" not in logs and "Traceback" not in logs, logs  # no callback error swallowed by Hydra
     models = runs(tmp_path, "model")
     assert len(models) == 2 and finished_once(models) == Counter({h: 1 for h in finished_once(models)})

@@ -149,13 +149,18 @@ def build(ranking: Ranking, ranking_run: str) -> str:
     return sec.number_figures(page)
 
 
+def report_path(sweep, out: str | Path | None = None) -> Path:
+    """Where the report goes: ``out`` if it names an ``.html`` file, else ``report_name`` in ``out`` (a
+    directory; None: ``reports/``)."""
+    path = Path(out) if out else reports_dir()
+    return path if path.suffix.lower() == ".html" else path / report_name(sweep)
+
+
 def write_report(ranking: Ranking, ranking_run: str, out: str | Path | None = None, pdf: bool = False) -> Path:
     """Write the page (``out``: a file, a directory, or None for ``reports/``) and log it to the ranking run; with
     ``pdf``, print it to A4 beside it (same name, ``.pdf``; headless Chromium) and log that too."""
     name = report_name(ranking.sweep)
-    path = Path(out) if out else reports_dir()
-    if path.suffix.lower() != ".html":
-        path = path / name
+    path = report_path(ranking.sweep, out)
     path.parent.mkdir(parents=True, exist_ok=True)
     page = build(ranking, ranking_run)
     path.write_text(page, encoding="utf-8")
@@ -175,11 +180,26 @@ def ranking_run_for(ranking: Ranking) -> str:
 
 
 def rank_and_report(uri: str, experiment: str, parent: str | None, structure: str | None = None,
-                    out: str | Path | None = None, pdf: bool = False) -> tuple[str, Path]:
-    """Rank, log the ranking run (reused if one ranked the same runs), write and log the report; print where."""
+                    out: str | Path | None = None, pdf: bool = False, reuse: bool = False) -> tuple[str, Path]:
+    """Rank, log the ranking run (reused if one ranked the same runs), write and log the report; print where.
+
+    ``reuse=True`` (the end of a sweep): when a FINISHED ranking run ranked exactly these runs and the
+    report file exists (and its PDF, if one is asked for), neither is made again — only the table is
+    ranked, to tell (loading the models, drawing the ranking's figures and rebuilding the report are
+    the cost of an unchanged sweep's end).
+    """
     from maglev.study.decisions import with_orders
 
     sweep = load_sweep(uri, experiment, parent)
+    if reuse:
+        quick = compute(sweep, structure, draw=False)
+        previous = previous_ranking_run(quick)
+        path = report_path(sweep, out)
+        if previous is not None and path.is_file() and (not pdf or path.with_suffix(".pdf").is_file()):
+            print(top_text(quick))
+            print(f"ranking run: {previous} (reused: it ranked these same runs)\nreport:      {path.resolve()} "
+                  f"(unchanged)\nMLflow UI:   {ui_hint(sweep, previous)}", flush=True)
+            return previous, path.resolve()
     ranking = compute(sweep, structure)
     decisions = with_orders(artifact_json(sweep.client, sweep.parent_id, "lab/decisions.json"), ranking.table)
     if decisions:  # the last decision of lab/decisions.json, made from the ranked runs
