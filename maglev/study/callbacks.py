@@ -223,6 +223,8 @@ class SweepCallback(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         try:
             self._start(config)
+        except NothingToDo:  # first: naming tracking.StoreProblem would import MLflow (tracking is lazy)
+            raise
         except tracking.StoreProblem as exc:  # says what to do in its one line
             raise SweepNotStarted(f"maglev: {credentials.redact(str(exc))}") from None
         except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
