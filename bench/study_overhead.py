@@ -261,8 +261,8 @@ def main(argv: list[str] | None = None) -> int:
         note = (f"`python bench/study_overhead.py --launch --repeats {a.repeats}"
                 f"{f' --sweeps {sweeps}' if sweeps != a.repeats else ''}"
                 f"{' --baseline CHECKOUT' if a.baseline else ''}`: {cores} cores, load average "
-                f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after; single-threaded BLAS; the checkouts "
-                "take turns.\n")
+                f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after; single-threaded BLAS"
+                f"{'; the checkouts take turns' if a.baseline else ''}.\n")
         print(note + "\n" + table)
         if a.markdown:
             a.markdown.write_text("# What a user of the study waits for\n\nWritten by " + note + "\n" + table)
