@@ -75,7 +75,7 @@ def test_order_edge_suggests_the_next_order_and_working_points_name_the_offset_d
     assert edge.text == ("bj: the mean simulation FIT over 2 dataset(s) (order 2: 86.00 %, order 3: 89.00 %, "
                          "order 4: 90.60 %) still rises by more than 1 point at the largest swept order 4: the "
                          "smallest order within 1 point of the best is 4, the edge of the swept orders [2, 3, 4]; "
-                         "add order 5 (structure.order) before concluding.")
+                         "add order 5 (++hydra.sweeper.orders.bj=[2,3,4,5]) before concluding.")
     [low] = cautions(ranked(val_fit_sim={3: 91.8, 6: 89.8}))
     assert low.numbers["suggest"] == 1 and low.numbers["edge"] == "lower"
     assert "is highest at the smallest swept order 2, more than 1 point above every other" in low.text

@@ -111,3 +111,28 @@ def test_a_grid_sweep_runs_only_the_orders_it_adds_and_resumes(migrated_store):
     with pytest.raises(NothingToDo):
         launch(store, *common[:2], *common[3:], "hydra.sweeper.orders={arx:'1,2,3',oe:'1,2'}")
     assert len(all_runs(store)[2]) == len(runs)
+
+
+@pytest.mark.parametrize("name, grids", [
+    ("lab", {"arx": [4, 5, 6, 7], "armax": [4, 5], "oe": [4, 5], "bj": [4, 5]}),
+    ("lab_real", {"arx": [2, 3, 4, 5, 6], "armax": [2, 3, 4, 5, 6, 7], "oe": [2, 3, 4, 5, 6], "bj": [2, 3, 4, 5, 6]}),
+])
+def test_the_lab_sweeps_declare_each_structures_orders_and_launch_them(name, grids):
+    """What `python study.py -m +sweep=NAME` launches and says it launches, from the config alone."""
+    from hydra import compose, initialize_config_dir
+
+    from maglev.study.callbacks import sweep_jobs as launched, sweep_size
+
+    from .harness import CONF
+
+    with initialize_config_dir(version_base="1.3", config_dir=str(CONF)):
+        cfg = compose("config", overrides=[f"+sweep={name}"], return_hydra_config=True)
+        jobs = launched(cfg)
+    datasets = cfg.hydra.sweeper.params["dataset"].split(",")
+    swept = {}
+    for job in jobs:
+        values = dict(o.split("=", 1) for o in job if not o.startswith("+"))
+        swept.setdefault(values["structure"], []).append(int(values["structure.order"]))
+    assert {st: sorted(set(orders)) for st, orders in swept.items()} == grids
+    assert all(len(orders) == len(datasets) * len(grids[st]) for st, orders in swept.items())
+    assert sweep_size(cfg) == len(jobs) == len(datasets) * sum(map(len, grids.values()))
