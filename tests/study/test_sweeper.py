@@ -136,3 +136,18 @@ def test_the_lab_sweeps_declare_each_structures_orders_and_launch_them(name, gri
     assert {st: sorted(set(orders)) for st, orders in swept.items()} == grids
     assert all(len(orders) == len(datasets) * len(grids[st]) for st, orders in swept.items())
     assert sweep_size(cfg) == len(jobs) == len(datasets) * sum(map(len, grids.values()))
+
+
+def test_the_sweeps_description_lists_each_structures_orders_when_they_differ():
+    from types import SimpleNamespace
+
+    from maglev.study.ranking import swept
+
+    def run(i, structure, orders):
+        return SimpleNamespace(info=SimpleNamespace(start_time=i),
+                               data=SimpleNamespace(tags={"dataset": "b", "structure": structure, "orders": orders}))
+
+    grid = [run(0, "arx", "[4 4 2]"), run(1, "arx", "[6 6 2]"), run(2, "oe", "[4 4 2]"), run(3, "oe", "[5 5 2]")]
+    assert swept(grid) == "1 dataset(s) (b) × 2 structure(s) (arx, oe) × orders (arx: 4, 6; oe: 4, 5)"
+    assert swept(grid[2:] + [run(4, "arx", "[5 5 2]"), run(5, "arx", "[4 4 2]")]) == \
+        "1 dataset(s) (b) × 2 structure(s) (oe, arx) × orders 4, 5"
