@@ -201,6 +201,34 @@ def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) 
     return text
 
 
+def order_sentence(oc: dict) -> str:
+    """The report's sentence on a structure's order (:func:`maglev.study.cautions.order_choice`): the mean
+    simulation FIT by order, the order the rule chooses, the orders that do not count because their models move
+    away from the best linear approximation, and where the choice lies in the swept grid."""
+    from maglev.lab.orders import away_from_bla as moving_away
+
+    grid, chosen, bla = oc["grid"], oc["chosen"], oc["bla"]
+    away = sorted(moving_away(bla, grid))
+    listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
+    among = ""
+    if away:
+        among = (" among the orders whose models do not move away from the best linear approximation (order(s) "
+                 f"{', '.join(map(str, away))} do: mean distance " + ", ".join(f"{o}: {num(bla[o], 3)}" for o in grid
+                                                                              if o in bla) + ")")
+    if oc["edge"]:
+        where = f", at the {oc['edge']} edge of the swept orders: add order {oc['suggest']}."
+    elif chosen == grid[0]:
+        counted = [o for o in grid if o > chosen and o not in away]
+        where = (", the smallest swept" + (f": the higher orders{' that count' if away else ''} add at most "
+                                           f"{ORDER_MARGIN:g} point" if counted else "")
+                 + " (no smaller order was swept).")
+    else:
+        where = ", inside the swept orders."
+    return (f"Mean simulation FIT by order ({listed}): the smallest order within {ORDER_MARGIN:g} point of the best"
+            f"{among} is <b>{chosen}</b>{where}")
+
+
+
 def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol: float = CANCEL_TOL) -> str:
     """``models``: run id -> PolyModel for every ranked run; ``lab``: the sweep's lab steps (order selection)."""
     parts = []
@@ -243,16 +271,7 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, lab_png: dict, tol
                        f"than {esc(best_aic)}, which has the lower AIC.")
         oc = order_choice(runs)
         if oc is not None:
-            listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
-            if oc["edge"]:
-                where = f", at the {oc['edge']} edge of the swept orders: add order {oc['suggest']}."
-            elif oc["chosen"] == oc["grid"][0]:
-                where = (f", the smallest swept: the higher orders add at most {ORDER_MARGIN:g} point (no smaller "
-                         "order was swept).")
-            else:
-                where = ", inside the swept orders."
-            choice += (f" Mean simulation FIT by order ({listed}): the smallest order within {ORDER_MARGIN:g} point "
-                       f"of the best is <b>{oc['chosen']}</b>{where}")
+            choice += " " + order_sentence(oc)
             undermined = away_from_bla(oc)
             if undermined:
                 choice += " " + esc(undermined)
