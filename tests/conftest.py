@@ -71,6 +71,7 @@ SLOW = (
     "study/test_ranking.py::test_rank_cli_logs_the_ranking_run",
     "study/test_ranking.py::test_structure_option_and_its_errors",
     "structures/test_registry.py::test_toy_structure_runs_through_a_sweep_and_the_ranking",
+    "study/test_sweeper.py::test_a_grid_sweep_runs_only_the_orders_it_adds_and_resumes",  # three tiny sweeps
     "test_bench.py::test_benchmark_script_runs",
     "test_layers.py::test_only_the_study_layer_reaches_hydra_omegaconf_or_mlflow",
     "test_layers.py::test_import_maglev_pulls_in_no_hydra_omegaconf_mlflow_or_matplotlib",

@@ -91,7 +91,8 @@ def orders_decision(fit: dict[str, dict[int, float]], aic: dict[str, dict[int, f
                            f"{margin:g} point over it or move away from the BLA: the FIT has levelled off{tail}.")
         else:
             cautions.append(f"{st}: order {chosen} is the largest swept ({listed}) and gains more than {margin:g} "
-                            f"point over the orders below: not settled; sweep order {chosen + 1}{tail}.")
+                            f"point over the orders below: not settled; sweep order {chosen + 1} "
+                            f"(++hydra.sweeper.orders.{st}=[{','.join(str(o) for o in [*grid, chosen + 1])}]){tail}.")
     rule = (f"Per structure, the smallest swept order whose mean validation simulation FIT is within {margin:g} "
             "point of the best, among the orders whose models do not move away from the best linear approximation "
             "(simulated data); settled when a higher swept order gained less than that or moved away from the BLA. "

@@ -50,23 +50,30 @@ log = logging.getLogger("maglev.study")
 
 def sweep_id(config: DictConfig, task: dict) -> str:
     """Identity of a sweep: its name, sweeper params and command-line overrides (not tracking/hydra)."""
-    raw = config.hydra.sweeper.get("params")
+    raw, grids = config.hydra.sweeper.get("params"), config.hydra.sweeper.get("orders")
     params = OmegaConf.to_container(raw, resolve=False) if raw is not None else {}
     overrides = sorted(o for o in config.hydra.overrides.task
                        if not o.lstrip("+~").startswith(("tracking", "hydra")))
-    text = json.dumps({"name": task["study"]["name"], "params": params, "overrides": overrides},
-                      sort_keys=True, default=str)
+    identity = {"name": task["study"]["name"], "params": params, "overrides": overrides}
+    if grids:  # a sweep without order grids keeps the identity it had before they existed
+        identity["orders"] = OmegaConf.to_container(grids, resolve=False)
+    text = json.dumps(identity, sort_keys=True, default=str)
     return hashlib.sha1(text.encode()).hexdigest()
 
 
 def sweep_size(config: DictConfig) -> int | None:
-    """How many jobs the sweep launches: the product of its sweep sizes (None if unknown).
-
-    The basic and joblib sweepers take the cartesian product of the sweeper params and
-    the command-line sweeps (the command line wins for a key given twice).
+    """How many jobs the sweep launches (None if unknown): its jobs (:func:`sweep_jobs`) counted, else the
+    product of its sweep sizes — the cartesian product of the sweeper params and the command-line sweeps
+    (the command line wins for a key given twice).
     """
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
+    try:
+        jobs = sweep_jobs(config)
+    except StudyConfigError:
+        return None  # check_sweep refuses the sweep, naming the key
+    if jobs is not None:
+        return len(jobs)
     raw = config.hydra.sweeper.get("params") or {}
     specs = {str(k): f"{k}={v}" for k, v in raw.items()}
     parser = OverridesParser.create()
@@ -96,15 +103,22 @@ class SweepNotStarted(SystemExit):
 
 
 def sweep_jobs(config: DictConfig) -> list[list[str]] | None:
-    """Every job's overrides, as Hydra's basic sweeper will launch them (None for another sweeper)."""
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
-    from hydra.core.override_parser.overrides_parser import OverridesParser
+    """Every job's overrides, as the study's sweeper (:mod:`maglev.study.sweeper`: the basic sweeper with an
+    order grid per structure) or Hydra's basic sweeper will launch them (None for another sweeper).  A mistake
+    in the order grids raises :class:`StudyConfigError` naming the key."""
+    from hydra.core.global_hydra import GlobalHydra
 
-    if not str(config.hydra.sweeper.get("_target_", "")).endswith("BasicSweeper"):
+    from maglev.study.sweeper import sweep_jobs as jobs
+
+    if not str(config.hydra.sweeper.get("_target_", "")).endswith(("BasicSweeper", "StudySweeper")):
         return None
-    raw = config.hydra.sweeper.get("params") or {}
-    specs = [f"{k}={v}" for k, v in raw.items()] + list(config.hydra.overrides.task)
-    return BasicSweeper.split_arguments(OverridesParser.create().parse_overrides(specs), None)[0]
+    grids = config.hydra.sweeper.get("orders")
+    grids = OmegaConf.to_container(grids) if grids is not None else None
+    hydra_ = GlobalHydra.instance()
+    structures = hydra_.config_loader().get_group_options("structure") if grids and hydra_.is_initialized() else None
+    choices = config.hydra.get("runtime", {}).get("choices", {})
+    return jobs(config.hydra.sweeper.get("params"), list(config.hydra.overrides.task), grids,
+                choices.get("structure"), structures)
 
 
 def check_job_dir(config: DictConfig, overrides: list) -> None:
@@ -138,7 +152,10 @@ def check_sweep(config: DictConfig) -> list[dict]:
 
     from maglev.study.compose import memoise
 
-    jobs = sweep_jobs(config)
+    try:
+        jobs = sweep_jobs(config)
+    except StudyConfigError as exc:
+        raise SweepRefused(f"maglev: sweep refused before any run: {exc}") from None
     if not jobs or not GlobalHydra.instance().is_initialized():
         return []
     loader = GlobalHydra.instance().config_loader()

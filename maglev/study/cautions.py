@@ -200,7 +200,8 @@ def order_edges(table: pd.DataFrame) -> list[Caution]:
             why = (f"{st}: the {over} is highest at the smallest swept order {grid[0]}, more than "
                    f"{ORDER_MARGIN:g} point above every other: it falls as the order rises from the edge of the swept "
                    f"orders {grid}")
-        text = f"{why}; add order {c['suggest']} (structure.order) before concluding."
+        wider = ",".join(str(o) for o in sorted({*grid, c["suggest"]}))
+        text = f"{why}; add order {c['suggest']} (++hydra.sweeper.orders.{st}=[{wider}]) before concluding."
         undermined = away_from_bla(c)
         if undermined:
             text += " " + undermined

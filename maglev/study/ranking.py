@@ -357,15 +357,26 @@ def ranking_description(r: Ranking, run_id: str) -> str:
 
 def swept(kids: list) -> str:
     """What a sweep varied, from its model runs' tags: datasets, structures, largest polynomial orders (each in
-    the order the runs started)."""
+    the order the runs started; per structure when the structures were swept over different orders)."""
     kids = sorted(kids, key=lambda r: r.info.start_time)
 
     def values(tag: str) -> list[str]:
         return list(dict.fromkeys(r.data.tags.get(tag, "?") for r in kids))
 
-    orders = sorted({int(o) for o in (model_order(r.data.tags.get("orders", "")) for r in kids) if not math.isnan(o)})
-    orders_text = ", ".join(map(str, orders)) or "?"
     ds, st = values("dataset"), values("structure")
+    grids: dict[str, set[int]] = {s: set() for s in st}
+    for r in kids:
+        o = model_order(r.data.tags.get("orders", ""))
+        if not math.isnan(o):
+            grids[r.data.tags.get("structure", "?")].add(int(o))
+
+    def listed(orders: set[int]) -> str:
+        return ", ".join(map(str, sorted(orders))) or "?"
+
+    if len({frozenset(g) for g in grids.values()}) > 1:
+        orders_text = "(" + "; ".join(f"{s}: {listed(grids[s])}" for s in st) + ")"
+    else:
+        orders_text = listed(set().union(*grids.values()))
     return (f"{len(ds)} dataset(s) ({', '.join(ds)}) × {len(st)} structure(s) ({', '.join(st)}) × "
             f"orders {orders_text}")
 

@@ -31,7 +31,8 @@ def test_the_sentence_flips_to_a_caution_when_the_fit_still_rises_at_the_top():
     assert final_order(rising) == (7, False)
     d = orders_decision({"arx": rising}, {"arx": {4: -5.0, 5: -5.5, 6: -5.6, 7: -5.8}}, physics_order=4)
     assert d.reasons == [] and d.cautions[0].startswith("arx: order 7 is the largest swept")
-    assert "sweep order 8" in d.cautions[0] and "AIC is lowest at order 7" in d.cautions[0]
+    assert "sweep order 8 (++hydra.sweeper.orders.arx=[4,5,6,7,8])" in d.cautions[0]
+    assert "AIC is lowest at order 7" in d.cautions[0]
     levelled = {**rising, 8: 57.2, 9: 57.4}
     d = orders_decision({"arx": levelled})
     assert d.choice == {"arx": 7} and d.cautions == [] and "order(s) [8, 9] gain less than 1 point" in d.reasons[0]

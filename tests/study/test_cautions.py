@@ -77,7 +77,7 @@ def test_order_edge_suggests_the_next_order_and_working_points_name_the_offset_d
     assert edge.text == ("bj: the mean simulation FIT over 2 dataset(s) (order 2: 86.00 %, order 3: 89.00 %, "
                          "order 4: 90.60 %) still rises by more than 1 point at the largest swept order 4: the "
                          "smallest order within 1 point of the best is 4, the edge of the swept orders [2, 3, 4]; "
-                         "add order 5 (structure.order) before concluding.")
+                         "add order 5 (++hydra.sweeper.orders.bj=[2,3,4,5]) before concluding.")
     [low] = cautions(ranked(val_fit_sim={3: 91.8, 6: 89.8}))
     assert low.numbers["suggest"] == 1 and low.numbers["edge"] == "lower"
     assert "is highest at the smallest swept order 2, more than 1 point above every other" in low.text
@@ -224,3 +224,23 @@ def test_the_report_judges_the_swept_delay_by_the_models_first_b_coefficient(tru
     else:
         assert ("most models find no response at lag 2, so the swept delay is too small for the data "
                 "(delayest: nk = 3)") in text
+
+
+@pytest.mark.parametrize("gain, bla5, ending", [
+    (1.3, 0.3, " among the orders whose models do not move away from the best linear approximation (order(s) 5 do: "
+               "mean distance 4: 0.100, 5: 0.300) is <b>4</b>, the smallest swept (no smaller order was swept)."),
+    (1.3, 0.05, " is <b>5</b>, at the upper edge of the swept orders: add order 6."),
+    (0.4, 0.1, " is <b>4</b>, the smallest swept: the higher orders add at most 1 point (no smaller order was swept)."),
+])
+def test_the_reports_order_sentence_says_why_a_higher_order_does_not_count(gain, bla5, ending):
+    """ARX's simulation FIT gains ``gain`` points from order 4 to 5 while its distance to the BLA goes from 0.1 to
+    ``bla5``: the report's sentence names the order chosen and, when order 5 moves away from the BLA, that it does
+    not count — never that it adds at most 1 point when it adds more."""
+    from maglev.study.cautions import order_choice
+    from maglev.study.report.sections import order_sentence
+
+    t = ranked([r if r[2] == 4 else (*r[:5], r[5] + gain, r[6]) for r in TWO])
+    t.loc[t["order"] == 5, "g_bla_err"] = bla5
+    sentence = order_sentence(order_choice(t))
+    assert sentence.startswith("Mean simulation FIT by order (4: 37.50 %, 5: ") and sentence.endswith(ending)
+    assert sentence.split("the best")[0].endswith("within 1 point of ")

@@ -237,6 +237,33 @@ def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) 
     return text
 
 
+def order_sentence(oc: dict) -> str:
+    """The report's sentence on a structure's order (:func:`maglev.study.cautions.order_choice`): the mean
+    simulation FIT by order, the order the rule chooses, the orders that do not count because their models move
+    away from the best linear approximation, and where the choice lies in the swept grid."""
+    from maglev.lab.orders import away_from_bla as moving_away
+
+    grid, chosen, bla = oc["grid"], oc["chosen"], oc["bla"]
+    away = sorted(moving_away(bla, grid))
+    listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
+    among = ""
+    if away:
+        among = (" among the orders whose models do not move away from the best linear approximation (order(s) "
+                 f"{', '.join(map(str, away))} do: mean distance " + ", ".join(f"{o}: {num(bla[o], 3)}" for o in grid
+                                                                              if o in bla) + ")")
+    if oc["edge"]:
+        where = f", at the {oc['edge']} edge of the swept orders: add order {oc['suggest']}."
+    elif chosen == grid[0]:
+        counted = [o for o in grid if o > chosen and o not in away]
+        where = (", the smallest swept" + (f": the higher orders{' that count' if away else ''} add at most "
+                                           f"{ORDER_MARGIN:g} point" if counted else "")
+                 + " (no smaller order was swept).")
+    else:
+        where = ", inside the swept orders."
+    return (f"Mean simulation FIT by order ({listed}): the smallest order within {ORDER_MARGIN:g} point of the best"
+            f"{among} is <b>{chosen}</b>{where}")
+
+
 def order_summary(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> pd.DataFrame:
     """One row per structure: its mean simulation FIT (%) over the datasets at each swept order (the number an order
     is chosen by, one column per order: a grid of any size stays a few rows) and its near cancellations in all."""
@@ -279,15 +306,7 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
         elif oc is None:
             text += f"One order swept ({esc(', '.join(sorted(set(runs['orders']))))}): no choice to motivate."
         else:
-            listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
-            text += (f"Mean simulation FIT by order ({listed}; the simulation FIT measures G alone, the part an order "
-                     f"is for): the smallest order within {ORDER_MARGIN:g} point of the best is <b>{oc['chosen']}</b>")
-            if oc["edge"]:
-                text += f", at the {oc['edge']} edge of the swept orders: order {oc['suggest']} would be the next to try."
-            elif oc["chosen"] == oc["grid"][0]:
-                text += f"; higher orders add at most {ORDER_MARGIN:g} point."
-            else:
-                text += ", inside the swept orders."
+            text += order_sentence(oc)
         undermined = away_from_bla(oc) if oc is not None else ""
         if undermined:
             text += " " + esc(undermined)
