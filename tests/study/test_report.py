@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import html
 import io
 import json
 import math
