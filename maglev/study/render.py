@@ -11,6 +11,7 @@ run, or a job in a joblib worker (already one of several processes), draws inlin
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -137,7 +138,8 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
         processes = list((_pool._processes or {}).values())
         _pool.shutdown(wait=False, cancel_futures=True)
         for process in processes:
-            process.terminate()
+            with contextlib.suppress(ProcessLookupError):  # it ended meanwhile (SIGTERM reaches it too)
+                process.terminate()
         _pool = None
     for run_id in left if write else []:
         try:

@@ -85,12 +85,13 @@ def test_scancel_of_a_job_mid_run_ends_its_run_killed_and_the_same_command_finis
 
 
 def test_a_job_at_its_time_limit_ends_its_run_killed_in_one_line(cluster, tmp_path):
-    # a BJ of a 10-minute record takes minutes: Slurm stops it at its 1-minute limit, its run long created
+    # a BJ of a 50-minute record takes minutes (a 10-minute one took 40 s on an idle machine): Slurm stops it
+    # at its 1-minute limit, its run long created
     # (a job's process takes up to 30 s to start under load): submitit's SIGUSR2 asked for 5 s before the
     # end, or the SIGTERM at the limit itself when slurmctld's 30-s checks pass that window
     tic = time.monotonic()
     proc = cluster.sweep("alice", tmp_path, "limit", "dataset=uniform_wide", "structure=bj", "structure.order=6",
-                         "dataset.duration_s=600", "tracking.experiment=limit", "hydra.launcher.timeout_min=1",
+                         "dataset.duration_s=3000", "tracking.experiment=limit", "hydra.launcher.timeout_min=1",
                          "hydra.launcher.signal_delay_s=5", *FAULT, rank=False)
     runs = cluster.runs("limit", "tags.kind = 'model'")
     assert len(runs) == 1, dump(proc)
