@@ -35,7 +35,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import credentials, shutdown
 from maglev.study.config import StudyConfigError, check, check_lab, config_hash, task_config
-from maglev.study.lazy import lazy_module
+from maglev.study.lazy import lazy_module, loaded
 
 # imported on first use: a relaunch with nothing to do (maglev.study.resume) ends before MLflow is imported
 claims = lazy_module("maglev.study.claims")
@@ -375,7 +375,8 @@ class SweepCallback(Callback):
         """atexit: the sweep did not reach on_multirun_end (a job raised, Ctrl-C, SIGTERM)."""
         if self.parent is None:
             return
-        drawing = render.abandon(write=tracking.unreachable is None)
+        # the renderer only where this process started it: importing it at exit fails (a Slurm launcher's)
+        drawing = render.abandon(write=tracking.unreachable is None) if loaded(render) else []
         why = signal.Signals(shutdown.received).name if shutdown.received else "stopped before its end"
         if tracking.unreachable is not None:  # nothing can be marked; the exit line says why
             claims.release_sweep(self.lock)

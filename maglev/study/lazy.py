@@ -21,3 +21,9 @@ def lazy_module(name: str) -> ModuleType:
     sys.modules[name] = module
     loader.exec_module(module)
     return module
+
+
+def loaded(module: ModuleType) -> bool:
+    """Whether ``module`` has run (a lazy module turns into a plain one on its first attribute access).  Code
+    that runs at interpreter exit asks first: importing then can fail (no new atexit hooks, threads refused)."""
+    return type(module) is ModuleType
