@@ -154,7 +154,9 @@ class StudyCfg:
     name: str = "study"  # sweep name: the parent run's name and the sweep folder
     val_horizon: int = 1  # prediction horizon of val_fit (1 = one step ahead)
     resid_lags: int = 25
-    true_plant: bool = True  # simulated data: distance to the simulator's linearisation
+    # simulated data: distances to the best linear approximation of the input class (g_bla_err) and to the
+    # simulator's linearisation
+    true_plant: bool = True
     skip_finished: bool = True  # skip a config whose hash already has a FINISHED run
     fail_on_error: bool = False  # re-raise a failing run's error (stops a basic-launcher sweep)
 
