@@ -21,7 +21,8 @@ binary_signal_2 record (skipped without the reference data), BJ [2 2 2 2 1] at
 N = 10⁴ over the floor of one Gauss–Newton iteration (6 lfilter passes and one QR of
 the Jacobian, timed alongside), and ARMAX [4 4 4 1]'s CPU time per sample at N = 10⁶
 over that at 10⁵.  ``--markdown PATH`` also writes the table and these lines as
-markdown, so that docs quote numbers the command wrote.
+markdown, so that docs quote numbers the command wrote, headed by the command and the fingerprint of what it
+measured (``bench/fingerprints.py``: docs/benchmarks.md is checked against it by a test).
 
 Peers run in the same process where installed (the ``bench`` extra):
 statsmodels ``SARIMAX`` as an exact ARMAX (lagged y and u as regressors, MA(nc)
@@ -50,6 +51,8 @@ import warnings  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import fingerprints  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.optimize import linear_sum_assignment  # noqa: E402
@@ -520,6 +523,12 @@ def _markdown(table: pd.DataFrame, lines: list[str]) -> str:
     return "\n".join(out + [""] + [f"- {line}" for line in lines]) + "\n"
 
 
+def _case_list(ns: list[int]) -> str:
+    """The cases the table measured, in words: each true system's structure and orders, and the record lengths."""
+    cases = ", ".join(f"{c.name} [{_orders(c.orders)}]" for c in _cases())
+    return f"{cases} at N = {', '.join(str(n) for n in ns)}"
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="N = 1e3, 1e4 and 3 repeats (under a minute)")
@@ -545,9 +554,10 @@ def main(argv: list[str] | None = None) -> None:
             "BLAS); CPU times depend on the machine's load, the ratios are measured side by side in one run")
     print(f"\n{note}")
     if args.markdown:
+        command = " ".join(["python bench/estimators.py", *(argv if argv is not None else sys.argv[1:])])
         with open(args.markdown, "w") as out:
-            out.write(f"# Estimator benchmark\n\nWritten by `python bench/estimators.py "
-                      f"{' '.join(argv if argv is not None else sys.argv[1:])}`; {note}.\n\n")
+            out.write(f"# Estimator benchmark\n\n{fingerprints.header(fingerprints.TABLES['estimators'], command)} "
+                      f"Cases: {_case_list(ns)}; {note}.\n\n")
             out.write(_markdown(table, lines))
 
 

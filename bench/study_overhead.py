@@ -7,7 +7,8 @@
 the default sweep with every BLA cached (into a fresh store), the seconds from the command to its
 first line of output, and the relaunch of the finished sweep (issue 39's targets: 5 s, 20 s, 5 s).
 With ``--baseline`` another checkout (``git archive main | tar -x -C DIR``) takes turns with this one
-and the table gives the ratio of the medians; ``--markdown`` writes the table to a file.
+and the table gives the ratio of the medians; ``--markdown`` writes the table to a file, headed by the command
+and the fingerprint of what it measured (``bench/fingerprints.py``).
 
 Per run (the default lab dataset uniform_wide, 24 s; the job's own functions): data
 (simulate + preprocess, cached per process in a sweep, so shown apart), estimation
@@ -51,6 +52,9 @@ matplotlib.use("Agg")
 warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))
+
+import fingerprints  # noqa: E402
 
 from omegaconf import OmegaConf  # noqa: E402
 
@@ -258,14 +262,14 @@ def main(argv: list[str] | None = None) -> int:
         times = launch_times(studies, a.repeats, sweeps)
         table = launch_table(times)
         cores = os.cpu_count()
-        note = (f"`python bench/study_overhead.py --launch --repeats {a.repeats}"
-                f"{f' --sweeps {sweeps}' if sweeps != a.repeats else ''}"
-                f"{' --baseline CHECKOUT' if a.baseline else ''}`: {cores} cores, load average "
-                f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after; single-threaded BLAS"
-                f"{'; the checkouts take turns' if a.baseline else ''}.\n")
+        command = " ".join(["python bench/study_overhead.py", *(argv if argv is not None else sys.argv[1:])])
+        note = (f"{fingerprints.header(fingerprints.TABLES['study'], command)} The default sweep "
+                f"(`python study.py -m +sweep=lab`): {a.repeats} relaunches, {sweeps} sweeps into fresh stores; "
+                f"{cores} cores, load average {load[0]:.1f} before and {os.getloadavg()[0]:.1f} after; single-threaded "
+                f"BLAS{'; the checkouts take turns' if a.baseline else ''}.\n")
         print(note + "\n" + table)
         if a.markdown:
-            a.markdown.write_text("# What a user of the study waits for\n\nWritten by " + note + "\n" + table)
+            a.markdown.write_text("# What a user of the study waits for\n\n" + note + "\n" + table)
         return 0
     structures = a.structures.split(",")
     with tempfile.TemporaryDirectory() as tmp:

@@ -3,8 +3,9 @@
 README.md is the entry (≤ 200 lines), docs/simulator.md the simulator's design and known gaps (≤ 300 lines);
 history goes to CHANGELOG.md and docs/decisions/, so no doc carries a date.  The glossary of
 docs/architecture.md gives each word one meaning; the words it retires are spot-checked here in the package,
-the configs and the docs.  (docs/validation.md's currency is checked beside the comparison it is written from:
-tests/sim/test_sim_vs_real.py.)"""
+the configs and the docs.  Measured times are quoted only by the pages the benchmarks write.  (docs/validation.md's
+currency is checked beside the comparison it is written from: tests/sim/test_sim_vs_real.py; the benchmark pages'
+in tests/test_bench.py.)"""
 
 from __future__ import annotations
 
@@ -59,6 +60,24 @@ def test_every_relative_link_resolves_to_a_file_and_its_heading(doc):
 @pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.relative_to(REPO).as_posix())
 def test_no_doc_carries_a_date(doc):
     assert DATE.findall(doc.read_text(encoding="utf-8")) == []
+
+
+TIMING = re.compile(r"\d ?(?:s|ms|seconds|µs|ns)(?: of)? (?:CPU|wall)\b|\bCPU (?:time )?(?:of )?\d|\d ?ms CPU", re.I)
+BENCHMARK_PAGES = {REPO / "docs" / "benchmarks.md", REPO / "docs" / "benchmarks-study.md"}
+
+
+@pytest.mark.parametrize("doc", sorted(set(DOCS) - BENCHMARK_PAGES), ids=lambda p: p.relative_to(REPO).as_posix())
+def test_no_doc_but_the_benchmark_pages_quotes_a_cpu_or_wall_time(doc):
+    # a measured time is written by its benchmark's command (docs/benchmarks*.md, checked current in
+    # tests/test_bench.py); a doc links to that page instead of copying a number by hand
+    assert TIMING.findall(doc.read_text(encoding="utf-8")) == []
+
+
+def test_the_timing_pattern_catches_hand_copied_timings():
+    for text in ("takes 919 ms CPU", "4.3 s CPU", "relaunch: CPU 2.8 s", "38.9 s of CPU", "46 s wall"):
+        assert TIMING.search(text), text
+    for text in ("substeps of at most 1.7 ms of physics", "10 s / 7 s", "within 30 s"):
+        assert not TIMING.search(text), text
 
 
 def test_the_glossarys_retired_words_are_used_nowhere():

@@ -34,7 +34,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import credentials, shutdown
-from maglev.study.config import StudyConfigError, check, check_lab, config_hash, task_config
+from maglev.study.config import StudyConfigError, check, check_lab, config_hash, report_file_name, task_config
 from maglev.study.lazy import lazy_module, loaded
 
 # imported on first use: a relaunch with nothing to do (maglev.study.resume) ends before MLflow is imported
@@ -215,7 +215,7 @@ def survey(config: DictConfig, task: dict, jobs: list[dict]):
     if ranking is not None:
         report = Path(ranking["report_dir"]) if ranking["report_dir"] else reports_dir()
         if report.suffix.lower() != ".html":
-            report = report / f"{name}-{sid[:8]}.html"  # maglev.study.ranking.report_name
+            report = report / report_file_name(name, sid)
     hashes = [config_hash(j) for j in jobs]
     found = read_store(task["tracking"]["uri"], task["tracking"]["experiment"], sid, hashes,
                        bool(task["lab"]["enabled"]), ranking, report, bool(task["tracking"]["reap"]))

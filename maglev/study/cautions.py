@@ -140,7 +140,7 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     grid), ``"lower"`` when the smallest swept order (> 1) simulates more than ``margin`` better than every other
     (the FIT falls as the order rises from the bottom), else None: the FIT levels off inside the grid or within
     the margin across it.  ``bla`` is the mean ``g_bla_err`` by order over the ``bla_datasets`` datasets that
-    have it at every order (empty for recorded data), which :func:`away_from_bla` reads.
+    have it at every order (empty for recorded data), which the orders rule reads.
     """
     if "val_fit_sim" not in runs or "order" not in runs:
         return None
@@ -163,25 +163,11 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
             "suggest": suggest, "bla": bla, "bla_datasets": n_bla}
 
 
-def away_from_bla(choice: dict) -> str:
-    """The sentence that undermines an upper edge (:func:`order_choice`), or "": the FIT still rises at the top
-    while the models' mean distance to the best linear approximation grows from the order below it, so the
-    higher order gains FIT from output the input does not explain linearly, not from G. (On the default plant's
-    ``uniform_narrow``, OE of order 5 follows more of the wander: 9 -> 16 % FIT while its distance to the BLA
-    grows from 0.77 to 2.89.)"""
-    bla, grid = choice["bla"], choice["grid"]
-    below, top = grid[-2], grid[-1]
-    if choice["edge"] != "upper" or not {below, top} <= set(bla) or not bla[top] > bla[below]:
-        return ""
-    return (f"Yet the models' mean distance to the best linear approximation over {choice['bla_datasets']} "
-            f"dataset(s) grows from order {below} to {top} ({bla[below]:.3g} to {bla[top]:.3g}): the higher order "
-            f"gains FIT from output the input does not explain linearly, not from G.")
-
-
 def order_edges(table: pd.DataFrame) -> list[Caution]:
     """A structure whose order supported by the simulation FIT (:func:`order_choice`) sits at an edge of the
-    swept orders: the FIT still changes by more than ``ORDER_MARGIN`` points toward that edge, and, when the
-    models move away from the best linear approximation meanwhile, that (:func:`away_from_bla`)."""
+    swept orders: the FIT still changes by more than ``ORDER_MARGIN`` points toward that edge.  An order whose
+    models move away from the best linear approximation is never an upper edge: the orders rule does not count
+    it (:func:`maglev.lab.orders.away_from_bla`), so the order below it is settled."""
     out = []
     for st, runs in table.groupby("structure", sort=False):
         c = order_choice(runs)
@@ -202,10 +188,6 @@ def order_edges(table: pd.DataFrame) -> list[Caution]:
                    f"orders {grid}")
         wider = ",".join(str(o) for o in sorted({*grid, c["suggest"]}))
         text = f"{why}; add order {c['suggest']} (++hydra.sweeper.orders.{st}=[{wider}]) before concluding."
-        undermined = away_from_bla(c)
-        if undermined:
-            text += " " + undermined
-            numbers["bla"] = {o: c["bla"][o] for o in grid[-2:]}
         out.append(Caution(f"order_at_edge_{st}", text, numbers))
     return out
 

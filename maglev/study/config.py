@@ -72,6 +72,13 @@ def safe_name(text: str) -> str:
     return name or "_"
 
 
+def report_file_name(name: str, sid: str) -> str:
+    """A sweep's report file name, ``<name>-<first 8 characters of sid>.html`` (``sid``: its ``sweep_id``, or its
+    parent run id without one), each part a plain file name (:func:`safe_name`).  Here, with no MLflow import,
+    so that the relaunch's survey (:mod:`maglev.study.callbacks`) and the ranking name the same file."""
+    return f"{safe_name(name)}-{safe_name(sid[:8])}.html"
+
+
 # what MLflow can store runs in: SQLite (an absolute path), a tracking server, a database server
 TRACKING_URI = re.compile(r"sqlite:////.+|https?://[^/\s]+(/.*)?|(postgresql|mysql|mssql)(\+\w+)?://.+")
 

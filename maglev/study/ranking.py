@@ -295,14 +295,14 @@ def log_ranking(r: Ranking) -> str:
 
 
 def report_name(sweep: Sweep) -> str:
-    """The report's file name, ``<sweep name>-<first 8 characters of its sweep_id>.html`` (of the parent run id
-    for a parent without one): two sweeps of one name never overwrite each other's report, and a relaunch of
-    the same sweep updates its own.  The name is read back from the store, where anyone may have set it: it
-    is made a plain file name (:func:`maglev.study.config.safe_name`), so ``--out DIR`` always writes in DIR."""
-    from maglev.study.config import safe_name
+    """The sweep's report file name (:func:`maglev.study.config.report_file_name`) from its name and
+    ``sweep_id`` as the store has them (the parent run id for a parent without one): two sweeps of one name
+    never overwrite each other's report, and a relaunch of the same sweep updates its own.  Both are read back
+    from the store, where anyone may have set them, and made plain file names, so ``--out DIR`` always writes
+    in DIR."""
+    from maglev.study.config import report_file_name
 
-    sid = sweep.parent.data.tags.get("sweep_id") or sweep.parent_id
-    return f"{safe_name(sweep.name)}-{safe_name(sid[:8])}.html"
+    return report_file_name(sweep.name, sweep.parent.data.tags.get("sweep_id") or sweep.parent_id)
 
 
 def previous_ranking_run(r: Ranking) -> str | None:

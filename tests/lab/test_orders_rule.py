@@ -10,7 +10,7 @@ from scipy.signal import lfilter
 
 from maglev.data import IOData
 from maglev.estimation import estimate
-from maglev.lab.orders import final_order, orders_decision
+from maglev.lab.orders import away_from_bla, final_order, orders_decision
 from maglev.validation import compare
 
 
@@ -52,3 +52,22 @@ def test_an_order_moving_away_from_the_bla_does_not_count():
     assert d.reasons[0].startswith("oe: order(s) [5] do not count") and "levelled off" in d.reasons[1]
     closer = orders_decision({"oe": fit}, bla={"oe": {4: 0.43, 5: 0.40}})  # the numbers flip, so does the text
     assert closer.choice == {"oe": 5} and closer.cautions and not closer.reasons
+
+
+def test_an_unsettled_order_never_moves_away_from_the_bla():
+    # the rule's guarantee that let the study drop its "yet the distance to the BLA grows" caution: an order at the
+    # top of the grid that is not settled (chosen == the largest swept) has never moved away from the BLA, on any
+    # grid, FIT and distances (random draws, distances missing at some orders)
+    rng = np.random.default_rng(7)
+    unsettled = 0
+    for _ in range(2000):
+        grid = sorted(rng.choice(np.arange(1, 9), size=rng.integers(2, 6), replace=False).tolist())
+        fit = {o: float(rng.uniform(0, 100)) for o in grid}
+        bla = {o: float(rng.uniform(0, 2)) for o in grid if rng.random() < 0.85}
+        chosen, settled = final_order(fit, bla=bla)
+        if not settled:
+            unsettled += 1
+            assert chosen == grid[-1] and chosen not in away_from_bla(bla, grid)
+            if chosen in bla:  # so its distance is no larger than the order below's
+                assert bla[chosen] == min(bla.values())
+    assert unsettled > 100  # the draws reach the case

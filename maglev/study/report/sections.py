@@ -18,7 +18,7 @@ import pandas as pd
 from maglev.model import CANCEL_TOL, PolyModel
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
-from maglev.study.cautions import ORDER_MARGIN, away_from_bla, order_choice
+from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.ranking import validation_note
 
 MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
@@ -241,10 +241,10 @@ def order_sentence(oc: dict) -> str:
     """The report's sentence on a structure's order (:func:`maglev.study.cautions.order_choice`): the mean
     simulation FIT by order, the order the rule chooses, the orders that do not count because their models move
     away from the best linear approximation, and where the choice lies in the swept grid."""
-    from maglev.lab.orders import away_from_bla as moving_away
+    from maglev.lab.orders import away_from_bla
 
     grid, chosen, bla = oc["grid"], oc["chosen"], oc["bla"]
-    away = sorted(moving_away(bla, grid))
+    away = sorted(away_from_bla(bla, grid))
     listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
     among = ""
     if away:
@@ -307,9 +307,6 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
             text += f"One order swept ({esc(', '.join(sorted(set(runs['orders']))))}): no choice to motivate."
         else:
             text += order_sentence(oc)
-        undermined = away_from_bla(oc) if oc is not None else ""
-        if undermined:
-            text += " " + esc(undermined)
         n_cancel = sum(len(models[i].near_cancellations(tol)) for i in runs["run_id"])
         if n_cancel:
             text += f" {n_cancel} near pole-zero cancellation(s) (|p−z| &lt; {tol}) among its models: orders the data do not support."
