@@ -9,33 +9,19 @@ data:
   (Hannan–Rissanen);
 * OE and BJ: the simplified refined instrumental-variable estimate of B/F (SRIV:
   instruments from the noise-free auxiliary model, data prefiltered by 1/F), and for
-  BJ a Hannan–Rissanen ARMA model of its residual — and the same B/F with a white
-  noise model (C = D = 1), from which the search fits the dynamics before the noise
-  model can absorb part of them;
+  BJ a Hannan–Rissanen ARMA model of its residual;
 * the general structure: A and B from ARX, a Hannan–Rissanen model of its residual;
 
 plus, when given, the caller's warm start (``init``), e.g. the model one order lower
 padded with zeros: the search then ends at or below its loss, so over a sweep of
-nested orders the loss never rises.  With a warm start only these are tried.
+nested orders the loss never rises.  With a warm start only these two are tried.
 
 The search minimises from the strongest start (lowest loss) to convergence.  If its
 prediction errors then look white and uncorrelated with past inputs (Ljung's tests at
 99 %), no other linear model predicts markedly better and the search stops: on data the
-structure describes, that is one minimisation.  Otherwise the other principal start is
-minimised to convergence too (it stops early only on joining the first minimum): on the
-simulated lab record binary_a025 BJ [4 4 4 4 2] ends at 1.42e-4 from the Hannan–Rissanen
-noise model and at 1.09e-4 from the white one.
+structure describes, that is one minimisation.
 
-For OE and BJ the best minimum is then certified against the nested lower-order models
-(one order lower in one polynomial): each is minimised from its principal start, the run
-cut short once it stays above the minimum.  If none ends within the χ²(1) 99 % margin of
-it (loss × (1 + 6.63/N), the gain one extra parameter makes by chance), the search stops:
-on binary_signal_2's first half, BJ [4 2 2 4 1] in 6 minimisations instead of 78.  A lower
-model at or below that margin means the first minimum may be a poor one, or one the lower
-model's own wider search gets below (white_noise_2's nearly flat losses), and the search
-goes on as follows.
-
-Further starts are tried, strongest first: plain ARX (for OE/BJ its input
+Otherwise further starts are tried, strongest first: plain ARX (for OE/BJ its input
 path with a Hannan–Rissanen noise model), BJ holding an ARX model (F = D = A, C = 1),
 the refined IV estimate for BJ (prefilter D/(C F), noise model refitted each round),
 for the general structure a BJ model whose common poles become A, and for OE and BJ
@@ -130,18 +116,17 @@ class Search:
         best: Minimum | None = None
         best_start = np.inf
 
-        def descend(pending: list[Evaluation], full: bool = False) -> None:
+        def descend(pending: list[Evaluation]) -> None:
             nonlocal best, best_start
             while pending:
                 start = pending.pop(int(np.argmin([ev.loss for ev in pending])))
                 converged = best is not None and best.termination.startswith(CONVERGED)
-                if converged and not full and start.loss > START_RATIO * best_start:
+                if converged and start.loss > START_RATIO * best_start:
                     continue
                 key = (spec, start.theta.tobytes())
                 result = self.runs.get(key)
                 if result is None:
-                    limits = [x for x in (best.evaluation.loss if converged and not full else None, bound)
-                              if x is not None]
+                    limits = [x for x in (best.evaluation.loss if converged else None, bound) if x is not None]
                     result = minimise(
                         spec, start.theta, self.y, self.u, self.fit_states, self.max_iterations, self.tolerance,
                         abandon_above=min(limits) if limits else None,
@@ -159,11 +144,8 @@ class Search:
         descend([pending.pop(int(np.argmin([ev.loss for ev in pending])))])
         if widen and best.termination.startswith(CONVERGED) and explains(best.evaluation.e, self.u):
             return best
-        descend(pending, full=widen)
+        descend(pending)
         if not widen:
-            return best
-        if full_lowers and lower_neighbours(spec) and best.termination.startswith(CONVERGED) \
-                and self._certified(spec, best):
             return best
         # the other starts, and the lower-order models padded with zeros: searched as plain calls
         # search them (at the top), or minimised quickly (for a lower model searched for a higher one)
@@ -173,16 +155,6 @@ class Search:
             pending.append(self._evaluate(spec, _padded(spec, lower, fitted)))
         descend(pending)
         return best
-
-    def _certified(self, spec: PolySpec, best: Minimum) -> bool:
-        """Whether no nested lower model, minimised from its principal start (runs cut short once
-        they stay above the margin), ends within the χ²(1) 99 % margin of ``best``: loss × (1 + 6.63/N)."""
-        margin = best.evaluation.loss * (1 + _chi2_bounds(1)[0] / self.y.size)
-        for lower in lower_neighbours(spec):
-            fitted = self.run(lower, self._starts(lower)[:1], False, bound=margin)
-            if fitted.evaluation.loss < margin:
-                return False
-        return True
 
     @staticmethod
     def _limit(bound: float | None, best: Minimum) -> float:
@@ -300,8 +272,7 @@ def starts(spec: PolySpec, y: np.ndarray, u: np.ndarray, memo: dict | None = Non
         if ("sriv", nb, nf, nk) not in memo:
             memo["sriv", nb, nf, nk] = refined_iv(y, u, nb, nf, nk)
         B, F = memo["sriv", nb, nf, nk]
-        out = [spec.theta(None, B, *hannan_rissanen(y - filt(B, F, u), nc, nd), F)]
-        return out + [spec.theta(None, B, None, None, F)] if nc + nd else out
+        return [spec.theta(None, B, *hannan_rissanen(y - filt(B, F, u), nc, nd), F)]
     # general: A from ARX, F starts at 1, noise from the ARX residual
     A, B = ls_arx(y, u, na, nb, nk)
     C, D = hannan_rissanen(filt(A, ONE, y) - filt(B, ONE, u), nc, nd)
