@@ -19,6 +19,7 @@ import pytest
 
 from maglev import estimation as E
 from maglev.data import IOData
+from maglev.lab.records import length_split, start_transient
 from maglev.refdata import load_record
 from maglev.validation import compare
 
@@ -80,6 +81,32 @@ def test_real_records_k_step_fit_never_climbs_back_and_ends_at_the_simulation_fi
     assert max(fits.values()) <= fits[1] + slack, fits
     assert fits[val.N - 1] == pytest.approx(simulation, abs=1e-6)
     assert abs(fits[500] - simulation) < 10
+
+
+@functools.cache
+def _study_record(root: Path) -> tuple[IOData, IOData]:
+    """binary_signal_2 prepared as the study prepares a real record: the start transient trimmed,
+    detrended, decimated to Ts = 2 ms, split by the lab's length rule (5000 + 5000 samples)."""
+    raw = load_record("binary_signal_2", root)
+    trim = start_transient(raw.y, raw.Ts).samples
+    data = (raw.trim(trim) if trim else raw).detrend().decimate(2)
+    return data.split(length_split(data.N, data.Ts)[0])
+
+
+@pytest.mark.parametrize("structure, orders", [("arx", (5, 5, 2)), ("armax", (6, 6, 6, 2)), ("oe", (3, 3, 2))])
+def test_adequate_models_k_step_fit_is_non_increasing_in_k_on_a_real_record(refdata, structure, orders):
+    """The issue's criterion on models of the orders the study settles on for the rig (ARX 5, ARMAX 6,
+    OE 3, nk = 2): the FIT at k = 1, 5, 50, 500, N − 1 never rises (to rounding) and ends at the
+    simulation FIT.  On this record ARX falls 98.2 → 10.5 and ARMAX 99.1 → 12.8; OE's predictions
+    do not depend on k.  (Not every record gives this for every model: on white_noise_2 ARMAX
+    [6 6 6 2] scores -1.5 % at k = 500 and its simulation 2.2 %.)"""
+    est, val = _study_record(refdata)
+    m = E.estimate(est, structure, list(orders))
+    fits = [compare(val, m, k)[0] for k in _horizons(val.N)]
+    assert np.all(np.diff(fits) <= 1e-6), fits
+    assert fits[-1] == pytest.approx(compare(val, m, math.inf)[0], abs=1e-6)
+    if structure != "oe":
+        assert fits[0] > fits[2] + 50, fits
 
 
 def test_a_horizon_of_the_record_length_or_more_is_simulation():

@@ -298,8 +298,9 @@ def _pem(
     candidates = [scale.scaled(nested_theta(spec, _checked_init(spec, init)))] if init is not None else []
     memo: dict = {}
     candidates += starts(spec, y, u, memo)
-    fit_states = _wants_states(spec, candidates, y, u, initial_condition)
-    best = best_minimum(spec, candidates, y, u, fit_states, max_iterations, tolerance, widen=init is None, memo=memo)
+    fit_states, evaluated = _wants_states(spec, candidates, y, u, initial_condition)
+    best = best_minimum(spec, candidates, y, u, fit_states, max_iterations, tolerance, widen=init is None, memo=memo,
+                        evaluated=evaluated)
     ev = best.evaluation
     mode = initial_condition
     if initial_condition == "auto":
@@ -314,20 +315,21 @@ def _pem(
     return _model(spec, A, B, C, D, F, data, e, r, report)
 
 
-def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condition: str) -> bool:
+def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condition: str) -> tuple[bool, list]:
     """Whether to fit initial states; "auto" decides at the best starting point by
     MATLAB's rule: fit them ("backcast") when the prediction-error norm with zero
-    states exceeds the norm with fitted states by more than AUTO_NORM_RATIO."""
+    states exceeds the norm with fitted states by more than AUTO_NORM_RATIO.  With the
+    evaluations at ``starts`` it made when they hold for the decision (zero states), so
+    that the search does not repeat them."""
     if initial_condition in ("estimate", "backcast"):
-        return True
+        return True, []
     if initial_condition == "zero":
-        return False
-    candidates = [project(spec, t) for t in starts]
-    losses = [evaluate(spec, t, y, u, False, False).loss for t in candidates]
-    theta0 = candidates[int(np.argmin(losses))]
-    zero = min(losses)
-    fitted = evaluate(spec, theta0, y, u, True, False).loss
-    return zero > AUTO_NORM_RATIO**2 * fitted
+        return False, []
+    zero = [evaluate(spec, project(spec, t), y, u, False, False) for t in starts]
+    best = min(zero, key=lambda ev: ev.loss)
+    fitted = evaluate(spec, best.theta, y, u, True, False).loss
+    wanted = best.loss > AUTO_NORM_RATIO**2 * fitted
+    return wanted, [] if wanted else zero
 
 
 def _model(spec, A, B, C, D, F, data: IOData, e: np.ndarray, r: np.ndarray, report: FitReport) -> PolyModel:

@@ -74,12 +74,16 @@ def best_minimum(
     tolerance: float | None,
     widen: bool = False,
     memo: dict | None = None,
+    evaluated: list[Evaluation] | None = None,
 ) -> Minimum:
     """The lowest minimum found from ``starts``, and with ``widen`` from the further starts
     the module docstring describes, built only when the evidence asks for them (``memo``:
-    the one `starts` filled, so that lower-order models reuse what they share)."""
-    return Search(y, u, fit_states, max_iterations, tolerance, built=memo if memo is not None else {}).run(
-        spec, starts, widen)
+    the one `starts` filled, so that lower-order models reuse what they share; ``evaluated``:
+    the caller's evaluations at ``starts``, projected, with these ``fit_states``)."""
+    search = Search(y, u, fit_states, max_iterations, tolerance, built=memo if memo is not None else {})
+    for theta, ev in zip(starts, evaluated or []):
+        search.evaluations[spec, theta.tobytes()] = ev
+    return search.run(spec, starts, widen)
 
 
 @dataclass
@@ -196,9 +200,10 @@ def explains(e: np.ndarray, u: np.ndarray, lags: int = 25) -> bool:
     N = e.size
     M = int(min(lags, max(N // 20, 1)))
     ec, uc = e - e.mean(), u - u.mean()
-    r_e = np.array([ec[k:] @ ec[: N - k] for k in range(M + 1)])  # Σ_t e(t+τ) e(t), τ = 0..M
-    r_u = np.array([uc[k:] @ uc[: N - k] for k in range(M + 1)])
-    r_eu = np.array([ec[k:] @ uc[: N - k] for k in range(M + 1)])  # Σ_t e(t+τ) u(t)
+    tail = np.zeros(M)
+    r_e = np.correlate(np.concatenate((ec, tail)), ec, "valid")  # Σ_t e(t+τ) e(t), τ = 0..M
+    r_u = np.correlate(np.concatenate((uc, tail)), uc, "valid")
+    r_eu = np.correlate(np.concatenate((ec, tail)), uc, "valid")  # Σ_t e(t+τ) u(t)
     if r_e[0] == 0 or r_u[0] == 0:
         return r_e[0] == 0
     r_eu = r_eu / np.sqrt(r_e[0] * r_u[0])

@@ -22,6 +22,8 @@ import pytest
 from maglev.data import IOData
 from maglev.estimation import estimate
 from maglev.refdata import load_record
+from maglev.sim.labdata import ExperimentSpec, experiment
+from maglev.sim.plant import rig
 
 GRIDS = {"oe": (2, range(1, 5)), "armax": (3, range(1, 4)), "bj": (4, range(1, 4))}
 SLACK = 0.01  # the issue's criterion: no higher model more than 1 % above its nested lower one
@@ -55,13 +57,13 @@ def fit_grid(data: IOData, structure: str, warm: bool) -> dict[tuple[int, ...], 
     return losses
 
 
-def violations(losses: dict[tuple[int, ...], float]) -> list[tuple]:
+def violations(losses: dict[tuple[int, ...], float], slack: float = SLACK) -> list[tuple]:
     """Nested pairs (lower, higher, relative excess) where the higher model ends above the lower one."""
     return [
-        (low, o, round(losses[o] / losses[low] - 1, 4))
+        (low, o, float(f"{losses[o] / losses[low] - 1:.3g}"))
         for o in losses
         for low in lower_neighbours(o)
-        if losses[o] > losses[low] * (1 + SLACK)
+        if losses[o] > losses[low] * (1 + slack)
     ]
 
 
@@ -114,7 +116,20 @@ def test_plain_bj_calls_on_white_noise_never_end_above_the_nested_lower_model(re
 
 
 def test_plain_bj_calls_on_white_noise_sweep_of_nested_pairs(refdata):
-    """Every nested pair of BJ [nb nc nd nf 1], orders 1..2, on white_noise_2's first half (32 pairs)."""
+    """Every nested pair of BJ [nb nc nd nf 1], orders 1..2, on white_noise_2's first half (32 pairs):
+    no higher model ends above its lower one, to rounding (pairs ended up to 0.37 % above when
+    a converged first minimum was accepted against its lower models' first runs alone)."""
     data = first_half(refdata, "white_noise_2")
     losses = {o: loss(data, "bj", o).report.loss for o in itertools.product(range(1, 3), repeat=4)}
-    assert violations(losses) == []
+    assert violations(losses, slack=1e-9) == []
+
+
+def test_bj_on_the_simulated_lab_record_finds_the_minimum_its_lower_models_lead_to():
+    """BJ [4 4 4 4 2] on binary_a025's estimation half, as the study fits it (initial conditions
+    "auto"): its principal start ends at 1.417e-4; the lower models BJ [4 4 3 4 2] and
+    [4 4 4 3 2], searched from their own starts and padded, lead to 1.0928e-4 (a search that
+    certified the first minimum against quickly minimised lower models stopped at 1.42e-4)."""
+    spec = ExperimentSpec(kind="binary", low=1.5, high=4.0, alpha=0.25, duration_s=24.0, seed=13, Ts=0.001)
+    est = experiment(spec, plant=rig("stuck_stretched")).trim(2000).detrend().decimate(2).split(0.5)[0]
+    m = estimate(est, "bj", [4, 4, 4, 4, 2])
+    assert m.report.loss <= 1.0928e-4, m.report.loss
