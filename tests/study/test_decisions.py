@@ -33,10 +33,15 @@ def test_real_records_chosen_keep_their_output_on_the_static_curve(real_decision
     by = {a.name: a for a in assessed}
     chosen = [n for names in dec.choice.values() for n in names]
     assert len(dec.choice["uniform"]) == 2 and len(dec.choice["binary"]) == 1
-    assert all(by[n].output_outside <= 0.02 and not by[n].refusals for n in chosen)
-    # the issue's counter-examples: binary_signal_2's output leaves the curve, white_noise_2 is off-centre
+    assert all(by[n].output_outside <= 0.02 and by[n].input_outside <= 0.02 and not by[n].refusals for n in chosen)
+    # the issue's counter-examples: binary_signal_2's output leaves the curve; white_noise_4 covers the whole
+    # region but a fifth of its input lies beyond it (1.5-4.0 A), so the rule refuses it
     assert by["real_binary_signal_2"].refusals and "real_binary_signal_2" not in chosen
-    assert "real_white_noise_2" not in chosen and by["real_white_noise_2"].offset > by[dec.choice["uniform"][1]].offset
+    assert by["real_white_noise_4"].input_outside > 0.1 and "real_white_noise_4" not in chosen
+    # every uniform record the rule passes over is refused or scores lower than the ones chosen
+    for a in assessed:
+        if a.input_class == "uniform" and a.name not in chosen:
+            assert a.refusals or a.score < min(by[n].score for n in dec.choice["uniform"]), a.name
 
 
 def test_real_binary_records_alpha_within_002_of_design(real_decisions):
