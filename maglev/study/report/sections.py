@@ -166,7 +166,7 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decis
         alpha = ds.get("alpha") if ds["input_class"] == "binary" else None
         text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): [{num(lo)}, {num(hi)}] A, "
                 f"{num(100 * cover, 0)} % of the working region's width, mean {num(prep.u0)} A "
-                f"({num(prep.u0 - u_star, 2)} A from u*); " + region_text(outside[name], INPUT_OUTSIDE_MAX))
+                f"({num(round(prep.u0 - u_star, 2) + 0.0, 2)} A from u*); " + region_text(outside[name], INPUT_OUTSIDE_MAX))
         if alpha is not None:
             text += (f"; α = {num(alpha)}" + (" = α*, the α whose spectrum puts most power in the output's band"
                                               if math.isclose(alpha, alpha_star) else f" (α* = {num(alpha_star)})"))
