@@ -190,7 +190,7 @@ class RootRegions:
         if not np.all(np.isfinite(C)):
             return True
         if self.is_real[i]:
-            return delta.imag == 0.0 and abs(delta.real) <= self.k_real * math.sqrt(C[0, 0])
+            return delta.imag == 0.0 and abs(delta.real) <= self.k_real * math.sqrt(max(C[0, 0], 0.0))
         d = np.array([delta.real, delta.imag])
         return float(d @ np.linalg.solve(C, d)) <= self.k_complex**2
 
@@ -201,7 +201,7 @@ class RootRegions:
             return np.array([], dtype=complex)
         r = complex(self.roots[i])
         if self.is_real[i]:
-            half = self.k_real * math.sqrt(C[0, 0])
+            half = self.k_real * math.sqrt(max(C[0, 0], 0.0))  # a variance rounded below 0: a point
             return np.array([r - half, r + half])
         vals, vecs = np.linalg.eigh(C)
         t = np.linspace(0.0, 2.0 * np.pi, n_points)

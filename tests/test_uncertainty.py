@@ -169,6 +169,15 @@ def test_real_root_region_is_a_segment_and_complex_one_an_ellipse_at_the_chi2_ra
             assert regions.contains(i, r + 0.99 * (edge[0] - r)) and not regions.contains(i, r + 1.01 * (edge[0] - r))
 
 
+def test_a_real_roots_variance_rounded_below_zero_is_a_point_not_an_error():
+    """P's quadratic form can round a real root's variance to a tiny negative number (an OE model of the default
+    sweep's pole map): its segment is then the root itself."""
+    r = U.RootRegions(kind="poles", roots=np.array([0.9 + 0j]), covariance=np.array([[[-1e-20, 0.0], [0.0, 0.0]]]),
+                      k_complex=3.0, k_real=2.5, level_complex=0.99, level_real=0.99)
+    np.testing.assert_array_equal(r.outline(0), [0.9, 0.9])
+    assert r.contains(0, 0.9) and not r.contains(0, 0.9 + 1e-12)
+
+
 def test_step_bounds_equal_finite_difference_propagation():
     m = _general_model()
     s, jac = U.step_jacobian(m, 60)

@@ -11,7 +11,9 @@ Every number these rules use is measured on the record, on its recorded sample a
   allows;
 * :func:`switching_rate` — α of a binary record, the share of recorded samples where it switches;
 * :func:`assess` and :func:`choose_records` — each record's offset, range, share of input outside
-  the working region, share of output outside the static curve, usable length, and the choice.
+  the working region, share of output outside the static curve, usable length, and the choice: a
+  record whose input or output leaves its range in more than 2 % of the samples is refused, however
+  much of the region it covers.
 
 Plain numpy; the decisions come back as :class:`~maglev.lab.decision.Decision`.
 """
@@ -26,11 +28,16 @@ import numpy as np
 from maglev.lab.decision import Decision
 
 __all__ = ["Transient", "start_transient", "length_split", "switching_rate", "RecordAssessment", "assess",
-           "choose_records", "length_decision", "alpha_decision", "EST_MIN_S", "VAL_MIN_S"]
+           "choose_records", "length_decision", "alpha_decision", "EST_MIN_S", "VAL_MIN_S", "INPUT_OUTSIDE_MAX",
+           "OUTPUT_OUTSIDE_MAX"]
 
 EST_MIN_S = 10.0  # lab §3.4: at least 10 s of estimation data
 VAL_MIN_S = 7.0  # ... and 7 s of validation data
 OUTPUT_OUTSIDE_MAX = 0.02  # a record whose output leaves the static curve's range more often is refused
+# ... and one whose input leaves the working region more often (lab §3.1: the input "never exceeds the
+# values on the boundary of the working region"; §3.3.2: the amplitude keeps it inside): a linear model
+# is only valid there, however wide the record
+INPUT_OUTSIDE_MAX = 0.02
 CURVE_TOLERANCE = 0.05  # share of the static curve's ȳ range allowed beyond its ends (sensor noise)
 
 
@@ -136,6 +143,9 @@ class RecordAssessment:
         out = []
         if not self.excited:
             out.append("the input is constant: no excitation")
+        if self.input_outside > INPUT_OUTSIDE_MAX:
+            out.append(f"{100 * self.input_outside:.1f} % of its input lies outside the working region "
+                       f"(more than {100 * INPUT_OUTSIDE_MAX:g} %)")
         if self.output_outside > OUTPUT_OUTSIDE_MAX:
             out.append(f"{100 * self.output_outside:.1f} % of its output lies outside the static curve's range "
                        f"(more than {100 * OUTPUT_OUTSIDE_MAX:g} %)")
@@ -175,9 +185,11 @@ def assess(name: str, input_class: str, u: np.ndarray, y: np.ndarray, Ts: float,
 
 
 RECORDS_RULE = (
-    "Refuse a record whose input is constant or whose output lies outside the static curve's range "
+    "Refuse a record whose input is constant, whose input lies outside the working region in more than "
+    f"{100 * INPUT_OUTSIDE_MAX:g} % of its samples (lab §3.1, §3.3.2: a linear model is valid inside it only), "
+    "or whose output lies outside the static curve's range "
     f"(its lowest to highest stationary average, ± {100 * CURVE_TOLERANCE:g} % of that range) in more than "
-    f"{100 * OUTPUT_OUTSIDE_MAX:g} % of its samples after the start transient. Rank the others by "
+    f"{100 * OUTPUT_OUTSIDE_MAX:g} % of its samples, after the start transient. Rank the others by "
     "score = coverage of the working region by the input's range − |mean input − u*| / region width − share of "
     f"input samples outside the region − share of the lab's {EST_MIN_S + VAL_MIN_S:g} s the record lacks; for the "
     "binary class, first keep the records whose α is nearest α*. Take the best 2 uniform and 1 binary record.")

@@ -2,7 +2,8 @@
 
 The rules themselves (working region, record choice, start transient and split, α, delay,
 orders) are plain functions in :mod:`maglev.lab`; this module feeds them the records a config
-names and turns their answers into config values and one ``decisions.json``
+names (and the sets the records are chosen from: the 2022 set, :data:`SIM_RECORDS` on the simulator)
+and turns their answers into config values and one ``decisions.json``
 (schema: :mod:`maglev.lab.decision`).  Three OmegaConf resolvers (registered by
 :mod:`maglev.study.schema`) let a config ask for a rule's answer, so a sweep stays
 declarative and a ``key=value`` override still forces any of them:
@@ -19,6 +20,7 @@ No MLflow here; the sweep callback logs :func:`sweep_decisions` on the parent ru
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 from pathlib import Path
 
 from maglev.data import IOData
@@ -199,23 +201,85 @@ def _unique_datasets(jobs: list[dict]) -> list[dict]:
     return list(seen.values())
 
 
+# The simulated lab's set of records (like the 2022 set: uniform noise over several ranges and offsets, one of
+# them beyond the working region; random binary signals at every α of the lab's Fig. 5 over the lab's region and
+# over part of it), 24 s at 1 ms each: name -> (input class, low A, high A, α, seed).  The records rule chooses
+# the simulated sweep's datasets from it as it chooses the real sweep's from the 2022 set; conf/dataset's
+# uniform_wide, uniform_narrow and binary_a025 are its choice on the default plant (tests/study/test_decisions.py).
+SIM_RECORDS: dict[str, tuple[str, float, float, float | None, int]] = {
+    "sim_uniform_1.75-2.5": ("uniform", 1.75, 2.5, None, 31),
+    "sim_uniform_1.5-3": ("uniform", 1.5, 3.0, None, 32),
+    "sim_uniform_1.75-3.25": ("uniform", 1.75, 3.25, None, 11),
+    "sim_uniform_1.5-3.5": ("uniform", 1.5, 3.5, None, 12),
+    "sim_uniform_1.5-4": ("uniform", 1.5, 4.0, None, 33),
+    "sim_binary_1.5-3.5_a0.25": ("binary", 1.5, 3.5, 0.25, 41),
+    "sim_binary_1.75-3.25_a0.25": ("binary", 1.75, 3.25, 0.25, 42),
+    "sim_binary_2-3_a0.25": ("binary", 2.0, 3.0, 0.25, 13),
+    **{f"sim_binary_{r}_a{a:g}": ("binary", lo, hi, a, seed)
+       for a, base in ((0.5, 50), (0.75, 60), (1.0, 70))
+       for r, lo, hi, seed in (("1.5-3.5", 1.5, 3.5, base + 1), ("2-3", 2.0, 3.0, base + 2))},
+}
+SIM_RECORD_S, SIM_RECORD_TS = 24.0, 0.001
+
+
+def _sim_candidate(name: str) -> dict:
+    cls, low, high, alpha, seed = SIM_RECORDS[name]
+    return {"name": name, "source": "sim", "input_class": cls, "low": low, "high": high, "alpha": alpha,
+            "duration_s": SIM_RECORD_S, "seed": seed, "Ts": SIM_RECORD_TS}
+
+
+@functools.lru_cache(maxsize=4)
+def assessed_sim(plant: str, region: tuple[float, float], curve: tuple[float, float],
+                 fraction: float = 0.8) -> tuple[tuple[RecordAssessment, ...], float, str]:
+    """(every record of :data:`SIM_RECORDS` simulated on ``plant`` and measured against the working ``region``
+    and the static ``curve``, α*, the uniform record it comes from): α* from the output spectrum of the rule's
+    best uniform record on its recorded sample axis, as on the 2022 set."""
+    from maglev.study.datasets import load_raw
+
+    raws = {n: load_raw({**_sim_candidate(n), "plant": plant}, "") for n in SIM_RECORDS}
+    assessed = tuple(assess(n, SIM_RECORDS[n][0], d.u, d.y, d.Ts, region, curve) for n, d in raws.items())
+    first = choose_records(assessed, None, {"uniform": 1}).choice["uniform"]
+    if not first:
+        raise ValueError(f"no simulated uniform record passes the record rule on plant {plant!r}")
+    d = raws[first[0]]
+    _, alpha = alpha_star_of(d, start_transient(d.y, d.Ts).samples, fraction)
+    return assessed, float(alpha.alpha_star), first[0]
+
+
+def _same_record(ds: dict, name: str, plant: str) -> bool:
+    from maglev.study.datasets import plant_name, sim_spec
+
+    return plant_name(ds) == plant and sim_spec(ds) == sim_spec(_sim_candidate(name))
+
+
 def sim_records(datasets: list[dict], wr: WorkingRegion, data_dir: str) -> Decision:
-    """The records decision of a simulated sweep: its datasets are designed by their configs (forced); the
-    rule's measures show how each meets the working region and the static curve."""
+    """The records decision of a simulated sweep: the records rule's choice from :data:`SIM_RECORDS` simulated
+    on the sweep's plant; a candidate that is one of the sweep's datasets carries the dataset's name.  When the
+    sweep's datasets are not the rule's choice (a ``dataset=`` override) the decision is forced, and a dataset
+    outside the set is measured beside the candidates (its row and any refusal as a caution)."""
+    from maglev.study.datasets import plant_name
+
     region, curve = (wr.u_min, wr.u_max), (float(wr.y_bar.min()), float(wr.y_bar.max()))
-    assessed = []
-    for ds in datasets:
-        raw = _raw(ds, data_dir)
-        assessed.append(assess(ds["name"], ds["input_class"], raw.u, raw.y, raw.Ts, region, curve))
-    names = [a.name for a in assessed]
-    wanted = {c: sum(a.input_class == c for a in assessed) for c in ("uniform", "binary")}
-    dec = choose_records(assessed, None, {c: n for c, n in wanted.items() if n}, forced=names)
-    return Decision("records", dec.rule, {"forced": names}, dec.evidence,
-                    ["Simulated datasets are designed by their configs (input class, range, α), not chosen from a "
-                     "set of recordings: the table measures each against the rule."]
-                    + [r for r in dec.reasons if not r.startswith("The config forces")], forced=True,
-                    cautions=[c for c in dec.cautions if "forced by the config" not in c]
-                    + [f"{a.name}: " + "; ".join(a.refusals) + "." for a in assessed if a.refusals])
+    plant = plant_name(datasets[0])
+    assessed, alpha_star, best = assessed_sim(plant, region, curve)
+    names = {n: next((ds["name"] for ds in datasets if _same_record(ds, n, plant)), n) for n in SIM_RECORDS}
+    assessed = [replace(a, name=names[a.name]) for a in assessed]
+    extra = [ds for ds in datasets if ds["name"] not in names.values()]
+    measured = [assess(ds["name"], ds["input_class"], raw.u, raw.y, raw.Ts, region, curve)
+                for ds in extra for raw in [_raw(ds, data_dir)]]
+    dec = choose_records(assessed, alpha_star)
+    chosen = sorted(n for names_ in dec.choice.values() for n in names_)
+    sweep = sorted(ds["name"] for ds in datasets)
+    head = [f"The rule chooses from the {len(SIM_RECORDS)} simulated lab records (maglev.study.decisions.SIM_RECORDS) on "
+            f"plant {plant}. α* = {alpha_star:g}, from the output spectrum of {names[best]} on its recorded sample "
+            "axis."]
+    if sweep != chosen:
+        dec = choose_records(assessed, alpha_star, forced=sweep)
+    dec.reasons[:0] = head
+    dec.evidence.extend(a.row() for a in measured)
+    dec.cautions.extend(f"{a.name} is forced by the config although the rule refuses it: " + "; ".join(a.refusals)
+                        + "." for a in measured if a.refusals)
+    return dec
 
 
 def delay_of(datasets: list[dict], data_dir: str, response, max_order: int, max_delay: int,

@@ -88,3 +88,28 @@ def test_length_decision_cautions_only_when_the_minimum_is_not_met():
     d = length_decision([ok, short])
     assert len(d.cautions) == 1 and d.cautions[0].startswith("b: 8.97 s estimation")
     assert d.reasons[0].endswith("the lab's minimum is met.") and d.reasons[1].endswith("below the lab's minimum.")
+
+
+def test_a_record_whose_input_leaves_the_region_is_refused_however_much_of_it_covers():
+    """white_noise_4's case: U(1.5, 4.0) A covers the whole region [1.5, 3.5] A and its output stays on the curve,
+    but 20 % of its input lies beyond the region's upper bound (lab §3.1: the input never exceeds the region's
+    boundary), so it loses to narrower records inside the region; with the excursion within the rule's 2 % it
+    wins again on its coverage."""
+    n = 20000
+    on_curve = _noise(n, 8.6, 0.1)
+    beyond = uniform_noise(n, 1.5, 4.0, seed=1)
+    inside = [_record("lower", "uniform", uniform_noise(n, 1.5, 3.0, seed=2), on_curve),
+              _record("narrow", "uniform", uniform_noise(n, 1.75, 2.5, seed=3), on_curve)]
+    wide = _record("beyond", "uniform", beyond, on_curve)
+    assert wide.input_outside == pytest.approx(0.2, abs=0.01) and wide.output_outside == 0.0
+    assert wide.score > max(a.score for a in inside)  # the score alone would pick it
+    d = choose_records([wide, *inside], wanted={"uniform": 2})
+    assert d.choice == {"uniform": ["lower", "narrow"]}
+    assert any(r.startswith("beyond is refused: 20.") and "of its input lies outside the working region" in r
+               for r in d.reasons)
+    # a brief excursion (1 % of the samples just above 3.5 A) stays within the rule: the wide record wins
+    brief = np.clip(beyond, 1.5, 3.5)
+    brief[::100] = 3.6
+    flipped = choose_records([_record("beyond", "uniform", brief, on_curve), *inside], wanted={"uniform": 2})
+    assert flipped.choice == {"uniform": ["beyond", "lower"]}
+    assert any(r.startswith("narrow loses") for r in flipped.reasons)

@@ -192,8 +192,8 @@ def test_report_renders_in_headless_chromium_without_broken_images(lab_sweep, tm
 # ---------------------------------------------------------------------------- the default sweep's promises
 DATASETS = ("uniform_narrow", "uniform_wide", "binary_a025")
 MIN_RANK_CORRELATION = 0.6  # issue 12: Spearman(g_bla_err, val_fit_sim) <= -0.6 within each dataset
-# the datasets whose validation output the input explains enough for the FIT to rank G; on uniform_narrow the
-# default plant's output is mostly its wander, as the rig's white_noise_2's is mostly incoherent (test below)
+# the datasets whose validation output the input explains enough for the FIT to rank G; on uniform_narrow, the
+# smaller uniform range, more of the default plant's output is its wander (test below)
 RANKED_DATASETS = ("uniform_wide", "binary_a025")
 WANDER_CEILING = 25.0  # %, the BLA's own simulation FIT below which the wander owns the validation output
 
@@ -213,16 +213,14 @@ def test_every_simulated_run_logs_the_bla_distance_the_naive_baseline_and_the_si
     by_dataset = model_runs(store)
     assert sorted(by_dataset) == sorted(DATASETS)
     for ds, runs in by_dataset.items():
-        assert len(runs) == 10, ds  # ARX at orders 4 to 7, ARMAX, OE and BJ at 4 and 5
+        assert len(runs) == 11, ds  # ARX at orders 4 to 7, ARMAX at 4 to 6, OE and BJ at 4 and 5
         for r in runs:
             m = r.data.metrics
             for key in ("g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "val_fit_naive", "val_fit_sim"):
                 assert math.isfinite(m[key]), (r.info.run_name, key)
             assert 0 < m["g_bla_err"] < 5, r.info.run_name
             # where the input explains the output every model is within 1.5 BLA norms and simulates at most 5 points
-            # above the BLA; on uniform_narrow OE(5) follows the wander (test below): which of its two minima the
-            # search ends in (loss 9.744e-5, simulation FIT 21.8 %; 9.879e-5, 16.2 %, 4.5 points above the BLA's 12.3)
-            # depended on the units before estimation normalised the data (y in mm instead of cm: 21.8 %)
+            # above the BLA; on uniform_narrow the OE models' slow pole-zero pair follows the wander (test below)
             if ds in RANKED_DATASETS:
                 assert m["g_bla_err"] < 1.5 and m["val_fit_sim"] < m["bla_fit_ceiling"] + 5, r.info.run_name
 
@@ -239,17 +237,21 @@ def test_runs_closer_to_the_bla_simulate_the_validation_data_better(lab_sweep, d
     assert rho.statistic <= -MIN_RANK_CORRELATION, (dataset, rho.statistic)
 
 
-def test_on_small_white_noise_the_wander_owns_the_validation_output_as_on_the_rig(lab_sweep):
-    """On uniform_narrow (U(1.75, 2.5) A) the default plant's output is mostly the wander that small command steps
-    drive, as the rig's white_noise_2's is mostly incoherent (OE(2,2,2) simulates it at 4.7 %): the BLA itself
-    simulates the validation data at about 12 %, and every model below 25 %. There one validation record's FIT
-    cannot rank the models' distance to the BLA (Spearman +0.52 on 2026-11-27: OE(5) simulated 16 %, above the
-    ceiling, 2.9 times the BLA's norm away), so issue 12's rank check is made on the other two datasets
-    (README, "Is the best linear approximation the truth?"). quiet_ageing's ceiling here was 88 %."""
+def test_on_the_smaller_uniform_range_the_wander_owns_more_of_the_validation_output(lab_sweep):
+    """The default plant's small command steps drive a slow wander (its upper bushing sticks), which no linear model
+    of the input explains: on uniform_narrow (U(1.75, 3.25) A) the BLA's own simulation FIT, the ceiling of every
+    linear model, is lower than on uniform_wide (U(1.5, 3.5) A, the same class over the whole region), and every
+    model simulates the validation data below WANDER_CEILING and below that ceiling.  There one validation record's
+    FIT does not rank the models' distance to the BLA (the OE models' slow pole-zero pair, an error on time scales
+    longer than the 11 s record, follows some of the wander), so issue 12's rank check is made on the other two
+    datasets (README, "Is the best linear approximation the truth?")."""
     store, _, _ = lab_sweep
-    for r in model_runs(store)["uniform_narrow"]:
+    runs = model_runs(store)
+    ceiling = {ds: runs[ds][0].data.metrics["bla_fit_ceiling"] for ds in ("uniform_narrow", "uniform_wide")}
+    assert ceiling["uniform_narrow"] < ceiling["uniform_wide"]
+    for r in runs["uniform_narrow"]:
         m = r.data.metrics
-        assert m["bla_fit_ceiling"] < WANDER_CEILING and m["val_fit_sim"] < WANDER_CEILING, r.info.run_name
+        assert m["val_fit_sim"] < min(WANDER_CEILING, m["bla_fit_ceiling"]), r.info.run_name
 
 
 def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
@@ -258,10 +260,10 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     the smallest order within ORDER_MARGIN of the best mean simulation FIT, among the orders whose models' mean
     distance to the BLA is not larger than a lower order's), is the largest of its grid.  The sweep gives each
     structure its grid (hydra.sweeper.orders): ARX's FIT still rises at 5 (its noise model 1/A needs more poles;
-    its distance to the BLA falls from 4 to 5), so ARX is swept at 4 to 7.  On the default plant ARMAX and OE rise
-    from 4 to 5 too (most of it on uniform_narrow, where the higher order follows more of the wander), but their
-    distance to the BLA grows: order 5 does not count and 4 is settled.  The orders decision logged on the sweep's
-    parent run then settles every structure inside its grid, without a caution."""
+    its distance to the BLA falls from 4 to 5), so ARX is swept at 4 to 7; ARMAX's FIT rises from 4 to 5 with its
+    distance to the BLA falling, so ARMAX is swept at 6 as well.  An order whose distance to the BLA grows does not
+    count.  The orders decision logged on the sweep's parent run then settles every structure inside its grid,
+    without a caution."""
     from maglev.lab.decision import read_decisions
     from maglev.study.cautions import ORDER_MARGIN
     from maglev.study.ranking import model_order
@@ -282,7 +284,7 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
             fits[st][order].append(r.data.metrics["val_fit_sim"])
             dists[st][order].append(r.data.metrics["g_bla_err"])
     assert {st: sorted(by_order) for st, by_order in fits.items()} == {
-        "arx": [4, 5, 6, 7], "armax": [4, 5], "oe": [4, 5], "bj": [4, 5]}
+        "arx": [4, 5, 6, 7], "armax": [4, 5, 6], "oe": [4, 5], "bj": [4, 5]}
     at_edge, final = set(), {}
     for st, by_order in fits.items():
         assert all(len(v) == 3 for v in by_order.values())
@@ -300,6 +302,34 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
         orders = read_decisions(json.load(fh))["orders"]
     assert orders.choice == final and orders.cautions == [] and at_edge == set()
     assert all(f"{st}: order {o} — mean simulation FIT" in " ".join(orders.reasons) for st, o in final.items())
+
+
+def test_the_default_sweeps_decisions_follow_the_labs_rules(lab_sweep):
+    """Issue 35's done-when on the default sweep, read from the decisions it logged: the working region ends below
+    the plateau; its datasets are the records rule's choice (not forced), each inside the region, centred at u*,
+    its output on the static curve; 10 s / 7 s of data; α within 0.02 of its design; the rig's delay (nk = 2); no
+    working-point caution in the ranking."""
+    from maglev.lab.decision import read_decisions
+    from maglev.lab.records import INPUT_OUTSIDE_MAX, OUTPUT_OUTSIDE_MAX
+
+    store, _, _ = lab_sweep
+    client, _, runs = all_runs(store)
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    with open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")) as fh:
+        dec = read_decisions(json.load(fh))
+    region = dec["working_region"].choice
+    assert region["u_max"] < region["u_sat_model"] and not dec["working_region"].cautions
+    records = dec["records"]
+    assert not records.forced and sorted(n for v in records.choice.values() for n in v) == sorted(DATASETS)
+    rows = {r["record"]: r for r in records.evidence}
+    for ds in DATASETS:
+        assert rows[ds]["u outside region"] <= INPUT_OUTSIDE_MAX and rows[ds]["y outside curve"] <= OUTPUT_OUTSIDE_MAX
+        assert rows[ds]["offset / width"] < 0.05, ds
+    assert all(p["est_s"] >= 10 and p["val_s"] >= 7 for p in dec["data_length"].choice.values())
+    assert not dec["alpha"].cautions and dec["delay"].choice["nk"] == 2 and not dec["delay"].forced
+    [ranking] = [r for r in runs if r.data.tags.get("kind") == "ranking"]
+    with open(client.download_artifacts(ranking.info.run_id, "cautions/cautions.json")) as fh:
+        assert "working_points_differ" not in {c["key"] for c in json.load(fh)}
 
 
 # ---------------------------------------------------------------------------- the lab's template, six pages

@@ -202,3 +202,37 @@ def test_a_logged_lab_decision_is_printed_in_its_section_with_rule_choice_and_ev
     appendix = decisions_evidence(decisions)
     assert "<h3>records</h3>" in appendix and appendix.count("<tr>") == EVIDENCE_ROWS + 4 and "<h3>delay" not in appendix
     assert decision(decisions, "orders") == "" and decision({}, "delay") == ""
+
+
+def _input_section(u_wide: np.ndarray, forced: bool) -> str:
+    """The report's input-signals section for one uniform record with input ``u_wide`` (region [1.5, 3.5] A)."""
+    from maglev.lab.decision import Decision
+    from maglev.study.report.sections import input_signals
+
+    prep = SimpleNamespace(raw=SimpleNamespace(u=u_wide), u0=float(u_wide.mean()))
+    cfg = {"dataset": {"input_class": "uniform", "preprocess": {"trim": 0}}}
+    records = Decision(name="records", rule="the records rule", choice={"uniform": ["wide"]}, forced=forced)
+    lab = {"lab.u_min": 1.5, "lab.u_max": 3.5, "lab.u_star": 2.5, "lab.alpha_star": 0.25}
+    return input_signals({"wide": prep}, {"wide": cfg}, lab, {}, {"records": records})
+
+
+def test_the_input_section_says_a_record_leaves_the_region_only_when_its_numbers_do():
+    """The section's sentence on each record and on why the records are these follows the share of input samples
+    outside the working region and whether the rule chose them: a record the rule chose is never said to leave
+    the region (it refuses more than 2 % outside); a forced one that does is named as breaking the rule."""
+    rng = np.random.default_rng(0)
+    inside = rng.uniform(1.5, 3.5, 20000)
+    chosen = _input_section(inside, forced=False)
+    assert "inside the working region." in chosen and "<b>leaves the working region</b>" not in chosen
+    assert "These records are the records rule's choice: the rule refuses a record whose input leaves" in chosen
+    brief = inside.copy()
+    brief[::100] = 3.6  # 1 % just above the region: within the rule
+    assert "1.0 % of its samples outside the working region (the rule allows 2 %)" in _input_section(brief, False)
+    beyond = rng.uniform(1.5, 4.0, 20000)  # white_noise_4's range
+    forced = _input_section(beyond, forced=True)
+    share = 100 * np.mean(beyond > 3.5)
+    assert f"<b>leaves the working region</b> in {share:.1f} % of its samples (the rule refuses more than 2 %)" in forced
+    assert "These records are forced by the config, not chosen: wide leaves the working region" in forced
+    assert "the records rule's choice" not in forced
+    assert "forced by the config, not chosen; each stays inside" in _input_section(inside, forced=True)
+    assert v.records_head({"a": 0.3, "b": 0.0}, 0.02, None).endswith(": a leaves the working region.")

@@ -65,19 +65,16 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
                     "independence_pvalue", "independence_pass", "g_h2_rel_err", "dcgain_rel_err",
                     "val_fit_naive", "g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "near_cancellations"):
             assert key in m, key
-        # ARX one step ahead is at least y(t-1): far above it on the large binary input (96 % against 83 %), no
-        # better on small white noise (50 % against 49 % on these 4 s records), as on the rig's white_noise_2 (ARX
-        # 76.64 % against y(t-1)'s 76.6 % at 1 ms). Output error's prediction is its simulation: on the binary input
-        # it reaches about 15-30 %, as OE(2,2,2) does on the rig's binary_signal_1-3
-        # (docs/decisions/0002-default-plant.md), and must still beat the output's mean; on small white noise it fails, as on the rig's
-        # white_noise_2 (4.7 %): the default plant's output is mostly its wander there
+        # ARX one step ahead is at least y(t-1): far above it on the binary input, at most a point below it on white
+        # noise, where the default plant's wander (driven by small command steps) owns much of the output, as on
+        # the rig's white_noise_2 (ARX 76.64 % against y(t-1)'s 76.6 % at 1 ms). Output error's prediction is its
+        # simulation, which must still beat the output's mean, as OE(2,2,2) does on the rig's binary_signal_1-3
+        # (docs/decisions/0002-default-plant.md)
         binary = t["dataset"] == "binary_a025"
         if t["structure"] == "arx":
             assert m["val_fit"] > m["val_fit_naive"] + (5 if binary else -1), (r.info.run_name, m["val_fit"])
-        elif binary:
-            assert m["val_fit"] > 0, (r.info.run_name, m["val_fit"])
         else:
-            assert m["val_fit"] < 25, (r.info.run_name, m["val_fit"])
+            assert m["val_fit"] > 0, (r.info.run_name, m["val_fit"])
         assert m["n_params"] == 4 and m["n_est"] == m["n_val"] == 875
         assert r.data.params["structure.name"] == t["structure"]
         assert r.data.params["dataset.duration_s"] == "4.0"

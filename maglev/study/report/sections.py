@@ -15,6 +15,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
+from maglev.lab.records import INPUT_OUTSIDE_MAX
 from maglev.model import CANCEL_TOL, PolyModel
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
@@ -145,33 +146,36 @@ def working_region(lab: dict, lab_png: dict, ts_used: list[float], decisions: di
 
 def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decisions: dict | None = None) -> str:
     """§3.3: why these three records: two uniform, one binary, each inside the working region, centred at u*,
-    as wide as it allows, and the binary one's α = α* from the output spectrum.  ``datasets``: name -> Prepared;
-    ``configs``: name -> run config."""
+    as wide as it allows, and the binary one's α = α* from the output spectrum; each record's share of input
+    samples outside the region beside the records rule's limit, and whether the rule chose them.
+    ``datasets``: name -> Prepared; ``configs``: name -> run config."""
+    from maglev.study.report.verdicts import records_head, region_text
+
     u_lo, u_hi = lab.get("lab.u_min", math.nan), lab.get("lab.u_max", math.nan)
     u_star = lab.get("lab.u_star", math.nan)
     alpha_star = lab.get("lab.alpha_star", math.nan)
-    why = []
+    why, outside = [], {}
     for name, prep in datasets.items():
         ds = configs[name]["dataset"]
         trim = int(ds["preprocess"]["trim"])
         u = prep.raw.u[trim:]
         lo, hi = float(np.min(u)), float(np.max(u))
-        inside = lo >= u_lo - 1e-9 and hi <= u_hi + 1e-9
+        eps = 1e-9 * max(1.0, abs(u_hi))
+        outside[name] = float(np.mean((u < u_lo - eps) | (u > u_hi + eps))) if u_hi > u_lo else math.nan
         cover = (hi - lo) / (u_hi - u_lo) if u_hi > u_lo else math.nan
         alpha = ds.get("alpha") if ds["input_class"] == "binary" else None
         text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): [{num(lo)}, {num(hi)}] A, "
                 f"{num(100 * cover, 0)} % of the working region's width, mean {num(prep.u0)} A "
-                f"({num(prep.u0 - u_star, 2)} A from u*); " + ("inside the working region" if inside else
-                                                                 "<b>leaves the working region</b>"))
+                f"({num(round(prep.u0 - u_star, 2) + 0.0, 2)} A from u*); " + region_text(outside[name], INPUT_OUTSIDE_MAX))
         if alpha is not None:
             text += (f"; α = {num(alpha)}" + (" = α*, the α whose spectrum puts most power in the output's band"
                                               if math.isclose(alpha, alpha_star) else f" (α* = {num(alpha_star)})"))
         why.append(text + ".")
     classes = [configs[n]["dataset"]["input_class"] for n in datasets]
+    records = (decisions or {}).get("records")
     head = (f"The lab asks for two uniform white-noise inputs and one random binary input (§3.3): this sweep uses "
-            f"{classes.count('uniform')} uniform and {classes.count('binary')} binary record(s). A record is "
-            "chosen for staying inside the working region (a linear model is valid there), being centred at u* and "
-            "covering as much of the region as it can (the most excitation the linear range allows):")
+            f"{classes.count('uniform')} uniform and {classes.count('binary')} binary record(s). "
+            + records_head(outside, INPUT_OUTSIDE_MAX, None if records is None else records.forced))
     shares = lab.get("alpha_shares", {})
     spectrum = ""
     if "lab.band_low" in lab:

@@ -47,6 +47,36 @@ def explained_by_dataset(table: pd.DataFrame) -> dict[str, float]:
     return {str(k): explained_share(float(v)) for k, v in best.items()}
 
 
+# ---------------------------------------------------------------------------- the records
+def region_text(outside: float, limit: float) -> str:
+    """Where a record's input lies against the working region, from the ``outside`` share of its samples beyond
+    it and the records rule's ``limit`` (:data:`maglev.lab.records.INPUT_OUTSIDE_MAX`)."""
+    if outside <= 0:
+        return "inside the working region"
+    if outside <= limit:
+        return f"{100 * outside:.1f} % of its samples outside the working region (the rule allows {100 * limit:g} %)"
+    return (f"<b>leaves the working region</b> in {100 * outside:.1f} % of its samples (the rule refuses more than "
+            f"{100 * limit:g} %)")
+
+
+def records_head(outside: dict[str, float], limit: float, forced: bool | None) -> str:
+    """Why the report's records are these, from each record's share of input samples ``outside`` the working
+    region, the rule's ``limit`` and whether the config ``forced`` them (None: the sweep logged no records
+    decision): the rule's reason when it chose them, the records that break it when they do."""
+    leaving = [n for n, x in outside.items() if x > limit]
+    left = f"{', '.join(leaving)} {'leaves' if len(leaving) == 1 else 'leave'} the working region"
+    rule = (f"the rule refuses a record whose input leaves the working region in more than {100 * limit:g} % of "
+            "its samples (a linear model is valid there only), then prefers one centred at u* that covers as much "
+            "of the region as it can (the most excitation the linear range allows)")
+    if forced is None:
+        return f"The sweep logged no records decision; {rule}" + (f": {left}." if leaving else ".")
+    if not forced:
+        return f"These records are the records rule's choice: {rule}."
+    if leaving:
+        return f"These records are forced by the config, not chosen: {left}, and {rule}."
+    return f"These records are forced by the config, not chosen; each stays inside the working region, and {rule}."
+
+
 # ---------------------------------------------------------------------------- binary vs uniform
 @dataclass
 class ClassComparison:
