@@ -29,19 +29,19 @@ collect_ignore_glob = [] if os.environ.get("MAGLEV_CLUSTER") == "1" else ["clust
 # waits for (servers, signals, processes in parallel):
 LONGEST_FIRST = (
     "study/test_report.py",       # 47: the default sweep, its BLAs estimated, ranked and reported
-    "study/test_processes.py",    # 41: a server killed mid-sweep, kill -9 of joblib's launcher, Ctrl-C, SIGTERM
-    "study/test_concurrency.py",  # 42: two launches at once (twice), SIGTERM, kill -9
-    "sim/test_calibrate.py",      # 26: the simulator's checks against the real records
-    "study/test_server.py",       # 27 with its server: submitit's job processes, a password in the URI
-    "study/test_report_real.py",  # 26: the real sweep, ranked, reported and printed
-    "study/test_sweep.py",        # 20: a sweep, maglev ui
-    "estimation/test_nested_orders.py",  # 22
-    "estimation/test_estimate_real.py",  # 20
-    "study/test_hostile.py",      # 29: refusals as processes
+    "study/test_processes.py",    # 38: a server killed mid-sweep, kill -9 of joblib's launcher, Ctrl-C, SIGTERM
+    "study/test_concurrency.py",  # 40: two launches at once (twice), SIGTERM, kill -9
+    "sim/test_calibrate.py",      # 24: the simulator's checks against the real records
+    "study/test_server.py",       # 16 and its server's ~10: submitit's job processes, a password in the URI
+    "study/test_report_real.py",  # 25: the real sweep, ranked, reported and printed
+    "study/test_sweep.py",        # 19: a sweep, maglev ui
+    "estimation/test_nested_orders.py",  # 21
+    "estimation/test_estimate_real.py",  # 19
+    "study/test_hostile.py",      # 18: refusals as processes
     "study/test_config.py",       # 15
     "study/test_faults.py",       # 11
-    "study/test_store.py",        # 12
-    "study/test_ui.py",           # 10: maglev ui's server
+    "study/test_store.py",        # 10
+    "study/test_ui.py",           # 8: maglev ui's server
     "study/test_parallel.py",     # joblib's worker processes
 )
 
