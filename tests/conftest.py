@@ -24,20 +24,25 @@ collect_ignore_glob = [] if os.environ.get("MAGLEV_CLUSTER") == "1" else ["clust
 # The README's command runs the suite in two pytest-xdist workers, whole files at a time (--dist loadfile),
 # handing a worker its next file once it has at most 2 tests left.  xdist's default order (files with the
 # most tests first) leaves the end-to-end files, a few tests of 5–35 s each, for last, and one worker
-# idle while the other finishes them.  Longest first instead (durations summed per file, a full run on a 2-core
-# machine, 2026-11-27, in s):
+# idle while the other finishes them.  Longest first instead: CPU seconds of a file's tests and of the
+# processes they start, summed per file (a full run, loaded 2-core machine), ordered by what each file also
+# waits for (servers, signals, processes in parallel):
 LONGEST_FIRST = (
-    "study/test_concurrency.py",  # 75: two launches at once (twice), SIGTERM, kill -9
-    "study/test_report.py",       # 69: the default sweep, its BLAs estimated, ranked and reported
-    "study/test_sweep.py",        # 42: a sweep, maglev ui
-    "study/test_server.py",       # 34: a tracking server, submitit's job processes
-    "study/test_report_real.py",  # 25 s of CPU: the real sweep, ranked, reported and printed (loaded machine)
-    "sim/test_calibrate.py",      # 30
-    "study/test_config.py",       # 25
-    "estimation/test_nested_orders.py",  # 19
-    "estimation/test_estimate_real.py",  # 18
-    "study/test_parallel.py",     # 17: joblib's worker processes
-    "study/test_faults.py",       # 16
+    "study/test_report.py",       # 47: the default sweep, its BLAs estimated, ranked and reported
+    "study/test_processes.py",    # 38: a server killed mid-sweep, kill -9 of joblib's launcher, Ctrl-C, SIGTERM
+    "study/test_concurrency.py",  # 40: two launches at once (twice), SIGTERM, kill -9
+    "sim/test_calibrate.py",      # 24: the simulator's checks against the real records
+    "study/test_server.py",       # 16 and its server's ~10: submitit's job processes, a password in the URI
+    "study/test_report_real.py",  # 25: the real sweep, ranked, reported and printed
+    "study/test_sweep.py",        # 19: a sweep, maglev ui
+    "estimation/test_nested_orders.py",  # 21
+    "estimation/test_estimate_real.py",  # 19
+    "study/test_hostile.py",      # 18: refusals as processes
+    "study/test_config.py",       # 15
+    "study/test_faults.py",       # 11
+    "study/test_store.py",        # 10
+    "study/test_ui.py",           # 8: maglev ui's server
+    "study/test_parallel.py",     # joblib's worker processes
 )
 
 

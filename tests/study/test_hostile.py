@@ -1,5 +1,5 @@
-"""Hostile configs and stores: names that would become paths outside the project, credentials in the tracking
-URI, values the config alone decides are wrong — each refused or neutralised before any run exists.
+"""Hostile configs and stores: names that would become paths outside the project, values the config alone decides
+are wrong — each refused or neutralised before any run exists (credentials in the tracking URI: test_server.py).
 
 The table of what the user sees is docs/faults.md.
 """
@@ -79,44 +79,7 @@ def test_an_artifact_path_that_leaves_the_artifact_folder_is_refused(migrated_st
 
 
 # ---------------------------------------------------------------------------- credentials in the URI
-@pytest.mark.slow
-def test_a_password_in_the_tracking_uri_is_nowhere_in_the_store_the_report_or_the_console(tmp_path, mlflow_server):
-    """Before: stored in a param, two tags, the run description, the report and four config artifacts, and
-    printed.  Every param, tag, metric name, description and text artifact of every run is searched."""
-    import subprocess
-    import sys
-
-    from mlflow import MlflowClient
-
-    from .harness import REPO, artifact_paths, process_env
-    from .test_server import rest  # noqa: F401  (the server is read as any client reads it)
-
-    secret = "s3cr3t-pw"
-    uri = mlflow_server.replace("http://", f"http://alice:{secret}@")
-    cmd = [sys.executable, str(REPO / "study.py"), "-m", "tracking=server", f"tracking.uri={uri}",
-           "dataset=binary_a025", "structure=arx,oe", *TINY, "study.true_plant=false", "lab.enabled=false",
-           "study.name=secrets", "tracking.experiment=secrets", f"hydra.sweep.dir={tmp_path}/multirun",
-           f"hydra.callbacks.maglev_rank.report_dir={tmp_path}/reports"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, timeout=600, env=process_env("MLFLOW_"))
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert secret not in proc.stdout + proc.stderr and "alice" not in proc.stdout + proc.stderr
-    client = MlflowClient(tracking_uri=mlflow_server)
-    exp = client.get_experiment_by_name("secrets").experiment_id
-    runs = client.search_runs([exp], max_results=100)
-    assert {r.data.tags.get("kind") for r in runs} == {"sweep", "model", "ranking"}
-    assert sum(r.data.tags.get("kind") == "model" and r.info.status == "FINISHED" for r in runs) == 2
-    for r in runs:
-        for text in [*r.data.params.values(), *r.data.tags.values(), *r.data.tags, *r.data.params]:
-            assert secret not in text and "alice" not in text, (r.info.run_id, text[:300])
-        for path in artifact_paths(client, r.info.run_id):
-            if path.endswith((".yaml", ".json", ".txt", ".html")):
-                local = client.download_artifacts(r.info.run_id, path, str(tmp_path / "dl" / r.info.run_id))
-                body = open(local, encoding="utf-8").read()
-                assert secret not in body and "alice" not in body, (r.info.run_id, path)
-    [report] = list((tmp_path / "reports").glob("*.html"))
-    assert secret not in report.read_text() and "alice" not in report.read_text()
-    params = next(r for r in runs if r.data.tags.get("kind") == "model").data.params
-    assert params["tracking.uri"] == mlflow_server  # the URI, without its userinfo
+# a password in the tracking URI: tests/study/test_server.py (its launch against a server carries one)
 
 
 # ---------------------------------------------------------------------------- configs that decide a failure

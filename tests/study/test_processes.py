@@ -78,22 +78,23 @@ def test_a_server_killed_in_the_middle_of_a_sweep_ends_it_within_a_minute_leavin
     wait_for(lambda: not alive(below), 10, f"the sweep's processes {alive(below)} ending", log)
 
 
-def test_kill_9_of_a_parallel_launcher_ends_its_workers_and_their_runs(tmp_path):
+def test_kill_9_of_a_parallel_launcher_ends_its_workers_and_their_runs(migrated_store):
     """joblib's workers lived on for more than 25 minutes after their launcher was killed; now each
     notices within a second, marks its run in flight KILLED and exits."""
     pytest.importorskip("hydra_plugins.hydra_joblib_launcher", reason="hydra-joblib-launcher is not installed")
     from .test_concurrency import runs
 
-    log = tmp_path / "study.log"
+    store = migrated_store  # the empty store's tables made once per worker: the test is about processes
+    log = store / "study.log"
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "hydra/launcher=parallel", "hydra.launcher.n_jobs=2",
            "dataset=binary_a025", "structure=oe,armax,bj", "structure.order=2,3", *TINY, *LEAN,
-           *store_overrides(tmp_path), "~hydra.callbacks.maglev_rank"]
+           *store_overrides(store), "~hydra.callbacks.maglev_rank"]
     with open(log, "w") as out:
-        sweep = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=tmp_path,
+        sweep = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=store,
                                  env=process_env(), start_new_session=True)
     try:
-        wait_for(lambda: sweep.poll() is not None or (tmp_path / "mlflow.db").exists()
-                 and any(r.info.status == "RUNNING" for r in runs(tmp_path, "model")), 240, "a run in flight", log)
+        wait_for(lambda: sweep.poll() is not None or any(r.info.status == "RUNNING" for r in runs(store, "model")),
+                 240, "a run in flight", log)
         below = descendants(sweep.pid)
         assert sweep.poll() is None and below, log.read_text()[-3000:]
         sweep.kill()
@@ -102,26 +103,28 @@ def test_kill_9_of_a_parallel_launcher_ends_its_workers_and_their_runs(tmp_path)
     finally:
         if alive(descendants(sweep.pid)):
             os.killpg(sweep.pid, signal.SIGKILL)
-    models = runs(tmp_path, "model")
+    models = runs(store, "model")
     assert models and [r.info.status for r in models if r.info.status == "RUNNING"] == [], \
         [(r.info.status, r.data.tags.get("pid")) for r in models]
     assert {r.info.status for r in models} <= {"FINISHED", "KILLED"}
 
 
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_ctrl_c_or_sigterm_to_the_process_group_prints_one_line_and_leaves_nothing_running(tmp_path, sig, code):
+def test_ctrl_c_or_sigterm_to_the_process_group_prints_one_line_and_leaves_nothing_running(
+        migrated_store, sig, code):
     """A terminal's Ctrl-C and a whole-group SIGTERM reach the launcher and its figure renderer at once.
     Before: Ctrl-C printed 40-132 lines (tracebacks of both processes); SIGTERM's exception was dropped in
     a SQLAlchemy weakref callback ("Exception ignored"), and the sweep ran on to exit 0."""
     from .harness import default_ctrl_c
     from .test_concurrency import runs
 
-    log = tmp_path / "study.log"
+    store = migrated_store  # the empty store's tables made once per worker: the test is about processes
+    log = store / "study.log"
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "dataset=binary_a025", "structure=arx,oe,armax",
-           "structure.order=2,3", *TINY, "study.true_plant=false", "lab.enabled=false", *store_overrides(tmp_path),
+           "structure.order=2,3", *TINY, "study.true_plant=false", "lab.enabled=false", *store_overrides(store),
            "~hydra.callbacks.maglev_rank"]
     with open(log, "w") as out:
-        sweep = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=tmp_path, env=process_env(),
+        sweep = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=store, env=process_env(),
                                  start_new_session=True, preexec_fn=default_ctrl_c)
     try:
         wait_for(lambda: "val_fit" in log.read_text() or sweep.poll() is not None, 240, "a first run", log)
@@ -136,7 +139,7 @@ def test_ctrl_c_or_sigterm_to_the_process_group_prints_one_line_and_leaves_nothi
              if "] \t#" not in line and "val_fit" not in line]
     assert sweep.returncode == code, log.read_text()[-3000:]
     assert len(after) == 1 and f"sweep stopped ({sig.name}): parent run " in after[0], after
-    models = runs(tmp_path, "model")
-    assert not [r for r in runs(tmp_path) if r.info.status == "RUNNING"]
+    models = runs(store, "model")
+    assert not [r for r in runs(store) if r.info.status == "RUNNING"]
     assert {r.info.status for r in models} <= {"FINISHED", "KILLED"}
     wait_for(lambda: not alive(below), 10, f"the sweep's processes {alive(below)} ending", log)

@@ -2,8 +2,9 @@
 executor), tracked on an `mlflow server` on 127.0.0.1 (the ``mlflow_server`` fixture, conftest.py), and
 read back as MLflow's UI reads it, through the server's REST API.
 
-One launch covers both the server mode and the cluster launcher: each costs a process start and a
-server, and a cluster sweep is what a server is for (docs/study.md, "Parallel and cluster runs").
+One launch covers the server mode, the cluster launcher and a password in the tracking URI: each costs a
+process start and a server, a cluster sweep is what a server is for (docs/study.md, "Parallel and cluster runs"),
+and a server is where a URI carries a password (docs/faults.md).
 """
 
 from __future__ import annotations
@@ -33,17 +34,23 @@ def tags(run: dict) -> dict[str, str]:
     return {t["key"]: t["value"] for t in run["data"].get("tags", [])}
 
 
-def test_a_submitit_sweep_against_a_tracking_server_is_listed_by_its_rest_api(tmp_path, mlflow_server):
+SECRET = "s3cr3t-pw"
+
+
+def test_a_submitit_sweep_against_a_tracking_server_is_listed_by_its_rest_api_without_the_uris_password(
+        tmp_path, mlflow_server):
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher",
                         reason="hydra-submitit-launcher is not installed (pip install -e .[cluster])")
     store = tmp_path / "client"
     store.mkdir()
+    uri = mlflow_server.replace("http://", f"http://alice:{SECRET}@")  # the password test below
     cmd = [sys.executable, str(REPO / "study.py"), "-m", "hydra/launcher=local", "tracking=server",
-           f"tracking.uri={mlflow_server}", "dataset=binary_a025,uniform_narrow", "structure=arx", *TINY,
+           f"tracking.uri={uri}", "dataset=binary_a025,uniform_narrow", "structure=arx", *TINY,
            "study.true_plant=false", "lab.enabled=false", "study.name=sub2", "tracking.experiment=cluster",
            f"hydra.sweep.dir={store}/multirun", f"hydra.callbacks.maglev_rank.report_dir={store}/reports"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=600, env=process_env())
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=store, timeout=600, env=process_env("MLFLOW_"))
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert SECRET not in proc.stdout + proc.stderr and "alice" not in proc.stdout + proc.stderr
 
     exp = rest(mlflow_server, "experiments/get-by-name?experiment_name=cluster")["experiment"]["experiment_id"]
     everything = rest(mlflow_server, "runs/search", {"experiment_ids": [exp], "max_results": 100})["runs"]
@@ -63,3 +70,29 @@ def test_a_submitit_sweep_against_a_tracking_server_is_listed_by_its_rest_api(tm
     sweep_id = tags(parent)["sweep_id"]
     assert [p.name for p in (store / "reports").glob("*.html")] == [f"sub2-{sweep_id[:8]}.html"]
     assert (store / "multirun" / ".submitit").is_dir() and not (store / "mlruns").exists()
+    assert_no_password(mlflow_server, "cluster", store / "reports", tmp_path / "dl")
+
+
+def assert_no_password(server: str, experiment: str, reports, downloads) -> None:
+    """A password in the tracking URI is nowhere in the store or the report.  Before: stored in a param, two
+    tags, the run description, the report and four config artifacts, and printed.  Every param, tag, metric
+    name, description and text artifact of every run is searched."""
+    from mlflow import MlflowClient
+
+    from .harness import artifact_paths
+
+    client = MlflowClient(tracking_uri=server)
+    runs = client.search_runs([client.get_experiment_by_name(experiment).experiment_id], max_results=100)
+    assert {r.data.tags.get("kind") for r in runs} == {"sweep", "model", "ranking"}
+    for r in runs:
+        for text in [*r.data.params.values(), *r.data.tags.values(), *r.data.tags, *r.data.params, *r.data.metrics]:
+            assert SECRET not in text and "alice" not in text, (r.info.run_id, text[:300])
+        for path in artifact_paths(client, r.info.run_id):
+            if path.endswith((".yaml", ".json", ".txt", ".html")):
+                local = client.download_artifacts(r.info.run_id, path, str(downloads / r.info.run_id))
+                body = open(local, encoding="utf-8").read()
+                assert SECRET not in body and "alice" not in body, (r.info.run_id, path)
+    [report] = list(reports.glob("*.html"))
+    assert SECRET not in report.read_text() and "alice" not in report.read_text()
+    params = next(r for r in runs if r.data.tags.get("kind") == "model").data.params
+    assert params["tracking.uri"] == server  # the URI, without its userinfo
