@@ -75,8 +75,9 @@ def test_real_records_k_step_fit_never_climbs_back_and_ends_at_the_simulation_fi
     m = _model(refdata, structure)
     fits = {k: compare(val, m, k)[0] for k in _horizons(val.N)}
     simulation = compare(val, m, math.inf)[0]
-    assert fits[1] >= fits[5] >= fits[50], fits
-    assert max(fits.values()) == fits[1]
+    slack = 1e-9  # OE predicts every horizon as it simulates: equal FITs differ by rounding only
+    assert fits[1] + slack >= fits[5] and fits[5] + slack >= fits[50], fits
+    assert max(fits.values()) <= fits[1] + slack, fits
     assert fits[val.N - 1] == pytest.approx(simulation, abs=1e-6)
     assert abs(fits[500] - simulation) < 10
 

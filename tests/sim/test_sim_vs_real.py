@@ -6,6 +6,7 @@ the numbers the lab computes on both; the real records are needed (skips otherwi
 
 import math
 import os
+import re
 from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
@@ -527,6 +528,13 @@ def test_the_table_ends_with_the_verdict_of_every_declared_check_and_names_those
 def test_the_validation_page_is_current(full_comparison):
     # docs/validation.md is written by `maglev calibrate --no-fit --markdown docs/validation.md` (default plant,
     # seed 1): the page must show what the comparison gives today
+    # to within one unit of each number's last printed digit: a value on a rounding edge (0.845) prints one way
+    # or the other with another machine's BLAS
     page = (Path(__file__).resolve().parents[2] / "docs" / "validation.md").read_text(encoding="utf-8")
-    assert page == calibrate.validation_markdown(full_comparison, DEFAULT_PLANT, seed=1), (
-        "docs/validation.md is stale: run `maglev calibrate --no-fit --markdown docs/validation.md`")
+    today = calibrate.validation_markdown(full_comparison, DEFAULT_PLANT, seed=1)
+    stale = "docs/validation.md is stale: run `maglev calibrate --no-fit --markdown docs/validation.md`"
+    number = re.compile(r"-?\d+(?:\.(\d+))?")
+    assert number.sub("#", page) == number.sub("#", today), stale
+    for written, now in zip(number.finditer(page), number.finditer(today), strict=True):
+        unit = 10.0 ** -len(written.group(1) or "")
+        assert abs(float(written.group()) - float(now.group())) <= unit * 1.001, (stale, written.group(), now.group())
