@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["project_root", "refdata_dir", "default_store_uri", "reports_dir"]
+__all__ = ["project_root", "refdata_dir", "default_store_uri", "reports_dir", "cache_root"]
 
 
 def project_root() -> Path:
@@ -40,3 +40,10 @@ def default_store_uri() -> str:
 def reports_dir() -> Path:
     """Where the lab reports are written by default: ``<root>/reports``."""
     return project_root() / "reports"
+
+
+def cache_root() -> Path:
+    """Where results that are costly to recompute and never change are kept: ``$MAGLEV_CACHE``, else
+    ``~/.cache/maglev`` (best linear approximations, the empty MLflow store)."""
+    root = os.environ.get("MAGLEV_CACHE")
+    return Path(root) if root else Path.home() / ".cache" / "maglev"

@@ -42,6 +42,7 @@ import numpy as np
 
 from maglev.data import IOData
 from maglev.locks import exclusive
+from maglev.paths import cache_root
 from maglev.spectral import FrequencyResponse, Preprocess, segment_length, spectra
 from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.sim.plant import Levitator, rig
@@ -149,9 +150,8 @@ _ARRAYS = ("w", "G", "std", "coherence", "Suu", "Syy")
 
 
 def cache_dir() -> Path:
-    """``$MAGLEV_CACHE/bla`` or ``~/.cache/maglev/bla``."""
-    root = os.environ.get("MAGLEV_CACHE")
-    return (Path(root) if root else Path.home() / ".cache" / "maglev") / "bla"
+    """``$MAGLEV_CACHE/bla`` or ``~/.cache/maglev/bla`` (:func:`maglev.paths.cache_root`)."""
+    return cache_root() / "bla"
 
 
 def cache_key(spec: ExperimentSpec, plant: Levitator, preprocess: Preprocess, realisations: int,

@@ -144,8 +144,8 @@ def check_sweep(config: DictConfig) -> list[dict]:
     Composing a job costs Hydra ≈ 0.1 s of CPU, so each distinct choice of config groups
     (``dataset=…``, ``structure=…``) is composed once and plain value overrides
     (``structure.order=3``) are applied to a copy, as composition would apply them: a relaunch with
-    nothing to do stops after these.  On the basic launcher the sweeper's validation then composes each
-    job once for the launcher as well (:func:`maglev.study.compose.memoise`).
+    nothing to do stops after these.  On the basic launcher these compositions are also the ones the
+    sweeper's validation and the launcher use (:func:`maglev.study.compose.memoise`).
     """
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -159,6 +159,8 @@ def check_sweep(config: DictConfig) -> list[dict]:
     if not jobs or not GlobalHydra.instance().is_initialized():
         return []
     loader = GlobalHydra.instance().config_loader()
+    if str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
+        memoise(loader)  # the sweeper's validation and the launcher reuse these compositions
     parser = OverridesParser.create()
     composed: dict[tuple[str, ...], DictConfig] = {}
     checked: list[dict] = []
@@ -182,8 +184,6 @@ def check_sweep(config: DictConfig) -> list[dict]:
             shown = " ".join(o if len(o) <= 80 else f"{o[:60]}…" for o in overrides
                              if not o.lstrip("+~").startswith(("tracking", "hydra")))
             raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
-    if str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
-        memoise(loader)
     return checked
 
 

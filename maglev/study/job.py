@@ -224,10 +224,9 @@ def run(cfg: DictConfig) -> float | None:
             for f in sorted(hydra_dir.glob("*.yaml")):
                 files[f"config/hydra/{f.name}"] = credentials.redact(f.read_text())
         tracking.log_files(client, run_id, files)
-        tracking.log_batch(client, run_id, metrics=out.metrics)
+        tracking.log_batch(client, run_id, metrics={**out.metrics, **tracking.key_metrics(out.metrics)},
+                           tags={tracking.NOTE: model_description(plain, out.metrics)})  # one transaction
         log_data_inputs(client, run_id, plain, out.prepared)
-        tracking.log_batch(client, run_id, metrics=tracking.key_metrics(out.metrics),
-                           tags={tracking.NOTE: model_description(plain, out.metrics)})
         if not plain["tracking"]["log_figures"]:
             client.set_terminated(run_id, "FINISHED")
         elif ctx.get("job_num") is not None and ctx["launcher"].endswith("BasicLauncher"):

@@ -1,0 +1,46 @@
+"""Each choice of config groups composed once (:mod:`maglev.study.compose`): every job's config is Hydra's own."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+CONF = Path(__file__).resolve().parents[2] / "conf"
+
+
+def test_every_job_of_the_lab_sweep_gets_hydras_own_config_from_one_composition_per_choice_of_groups():
+    """The default sweep's 30 jobs (3 datasets × 4 structures × their orders): the memoised loader gives each
+    job exactly the config Hydra composes for it (values, ``hydra.overrides.task``, the job's folder name),
+    twice (the sweeper's validation, then the launcher), each time a copy of its own, from 12 compositions."""
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.types import RunMode
+
+    import maglev.study.schema  # noqa: F401
+    from maglev.study.callbacks import sweep_jobs
+    from maglev.study.compose import memoise
+
+    with initialize_config_dir(version_base="1.3", config_dir=str(CONF)):
+        loader = GlobalHydra.instance().config_loader()
+        master = loader.load_configuration("config", ["+sweep=lab", "tracking.uri=sqlite:////tmp/x/mlflow.db",
+                                                      "hydra.sweep.dir=/tmp/x"], run_mode=RunMode.MULTIRUN)
+        jobs = sweep_jobs(master)
+        assert len(jobs) == 30
+        own = {tuple(job): OmegaConf.to_yaml(type(loader).load_sweep_config(loader, master, job)) for job in jobs}
+        assert len(set(own.values())) == 30
+        composed = []
+        compose = loader.load_sweep_config
+
+        def counted(master_config, overrides):
+            composed.append(tuple(overrides))
+            return compose(master_config, overrides)
+
+        loader.load_sweep_config = counted
+        memoise(loader)
+        for _ in ("validation", "launch"):
+            configs = [loader.load_sweep_config(master, job) for job in jobs]
+            assert [OmegaConf.to_yaml(cfg) for cfg in configs] == [own[tuple(job)] for job in jobs]
+            configs[0].structure.name = "changed"  # a job's config is its own
+        assert len(composed) == len(set(composed)) == 12
+        assert configs[0].hydra.job.override_dirname == "dataset=uniform_narrow,structure.order=4,structure=arx"
