@@ -274,7 +274,7 @@ class Server:
 
 # How long each server worker trusts a verified user:password (MLflow's ``auth_cache_ttl_seconds``, off
 # by default).  Without it every request pays the password hash check, by design tens of milliseconds of
-# server CPU, and a run makes a few dozen requests.  The price: a worker that did not handle a password
+# server CPU, and every run makes tens of requests.  The price: a worker that did not handle a password
 # change or a user's deletion accepts the old credential for up to this long (docs/cluster.md).
 AUTH_CACHE_TTL_S = 300
 
