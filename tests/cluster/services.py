@@ -272,17 +272,26 @@ class Server:
         return name, password
 
 
-def start_server(pg: Postgres, workers: int = 2) -> Server:
+# How long each server worker trusts a verified user:password (MLflow's ``auth_cache_ttl_seconds``, off
+# by default).  Without it every request pays the password hash check, by design tens of milliseconds of
+# server CPU, and every run makes tens of requests.  The price: a worker that did not handle a password
+# change or a user's deletion accepts the old credential for up to this long (docs/cluster.md).
+AUTH_CACHE_TTL_S = 300
+
+
+def start_server(pg: Postgres, workers: int = 2, auth_cache_ttl_s: int = AUTH_CACHE_TTL_S) -> Server:
     """The recipe of docs/cluster.md: backend store and auth database on PostgreSQL (password from
     ``PGPASSWORD``, not in a URI), artifacts served by the server, basic auth with every user allowed to
-    edit (a shared study), one admin whose password is random."""
+    edit (a shared study) and verified credentials cached per worker (``auth_cache_ttl_s``, 0: none), one
+    admin whose password is random."""
     home = Path(tempfile.mkdtemp(prefix="maglev-mlflow-"))
     admin = ("maglev-admin", secrets.token_hex(12))
     ini = home / "auth.ini"
     ini.write_text("[mlflow]\ndefault_permission = EDIT\n"
                    f"database_uri = {pg.uri('mlflow_auth')}\n"
                    f"admin_username = {admin[0]}\nadmin_password = {admin[1]}\nauthorization_function = "
-                   "mlflow.server.auth:authenticate_request_basic_auth\n")
+                   "mlflow.server.auth:authenticate_request_basic_auth\n"
+                   f"auth_cache_ttl_seconds = {auth_cache_ttl_s}\n")
     port = free_port()
     env = {**os.environ, "PGPASSWORD": pg.password, "MLFLOW_AUTH_CONFIG_PATH": str(ini),
            "MLFLOW_FLASK_SERVER_SECRET_KEY": secrets.token_hex(16), "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
