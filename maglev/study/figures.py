@@ -51,11 +51,15 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
     datasets = list(dict.fromkeys(comp.sort_values(["input_class", "dataset"])["dataset"]))
     width = 0.8 / max(len(datasets), 1)
     for j, ds in enumerate(datasets):
-        rows = comp[comp["dataset"] == ds].set_index("orders")
+        # several runs of one dataset and orders (records of other seeds): one bar, their mean
+        rows = comp[comp["dataset"] == ds].groupby("orders", sort=False).agg(
+            val_fit=("val_fit", "mean"), runs=("val_fit", "size"), input_class=("input_class", "first"))
         cls = rows["input_class"].iloc[0]
         x = [i + (j - (len(datasets) - 1) / 2) * width for i, o in enumerate(orders) if o in rows.index]
         y = [rows.loc[o, "val_fit"] for o in orders if o in rows.index]
-        bars = ax.bar(x, y, width, label=f"{ds} ({cls})", hatch="//" if cls == "binary" else None,
+        runs = int(rows["runs"].max())
+        label = f"{ds} ({cls})" + (f", mean of up to {runs} runs" if runs > 1 else "")
+        bars = ax.bar(x, y, width, label=label, hatch="//" if cls == "binary" else None,
                       edgecolor="k", linewidth=0.5)
         ax.bar_label(bars, fmt="%.1f", fontsize="x-small")
     low = float(np.nanmin(comp["val_fit"]))
