@@ -132,12 +132,21 @@ def header(table: Table, command: str) -> str:
             "today's (docs/development.md).")
 
 
+REPEATS = r"(?: --(?:repeats|reps|sweeps) \d+)*"  # options that change how often a case is timed, not what
+
+
+def written_by(table: Table, text: str) -> bool:
+    """Whether the page says it was written by the table's command, with at most other repeat counts."""
+    head, _, tail = table.command.partition(" --markdown ")
+    return re.search(f"Written by `{re.escape(head)}{REPEATS} --markdown {re.escape(tail)}`", text) is not None
+
+
 def stale(table: Table) -> str | None:
     """Why the page is not current (a line ending in the command to run), or None when it is."""
     page = REPO / table.page
     text = page.read_text(encoding="utf-8") if page.is_file() else ""
     found = FINGERPRINT.search(text)
-    if f"Written by `{table.command}`" not in text:
+    if not written_by(table, text):
         why = "was not written by its command"
     elif found is None:
         why = "carries no fingerprint"

@@ -113,6 +113,14 @@ def test_a_page_written_by_another_command_or_by_hand_is_stale(copy):
     assert fp.stale(table) == (f"{table.page} was not written by its command: run `{table.command}` to regenerate")
     page.write_text(f"# A page\n\nWritten by `{table.command}`.\n")
     assert fp.stale(table).startswith(f"{table.page} carries no fingerprint: run `{table.command}`")
+    # more or fewer repeats measure the same cases; --quick (other N) does not
+    study = fp.TABLES["study"]
+    with_repeats = study.command.replace(" --markdown", " --repeats 5 --sweeps 3 --markdown")
+    (root / study.page).write_text(f"# A page\n\n{fp.header(study, with_repeats)}\n")
+    assert fp.stale(study) is None
+    quick = table.command.replace(" --markdown", " --quick --markdown")
+    page.write_text(f"# A page\n\n{fp.header(table, quick)}\n")
+    assert "was not written by its command" in fp.stale(table)
 
 
 def test_the_estimators_fingerprint_follows_the_imports_of_the_code_it_times():
