@@ -115,7 +115,7 @@ def test_a_grid_sweep_runs_only_the_orders_it_adds_and_resumes(migrated_store):
 
 @pytest.mark.parametrize("name, grids", [
     ("lab", {"arx": [4, 5, 6, 7], "armax": [4, 5, 6], "oe": [4, 5], "bj": [4, 5]}),
-    ("lab_real", {"arx": [2, 3, 4, 5, 6], "armax": [2, 3, 4, 5, 6, 7], "oe": [2, 3, 4, 5, 6], "bj": [2, 3, 4, 5, 6]}),
+    ("lab_real", {"arx": [2, 3, 4, 5, 6], "armax": [2, 3, 4, 5, 6, 7], "oe": [2, 3, 4, 5, 6, 7], "bj": [2, 3, 4, 5, 6]}),
 ])
 def test_the_lab_sweeps_declare_each_structures_orders_and_launch_them(name, grids):
     """What `python study.py -m +sweep=NAME` launches and says it launches, from the config alone."""
