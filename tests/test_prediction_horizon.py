@@ -95,8 +95,8 @@ def _study_record(root: Path) -> tuple[IOData, IOData]:
 
 @pytest.mark.parametrize("structure, orders", [("arx", (5, 5, 2)), ("armax", (6, 6, 6, 2)), ("oe", (3, 3, 2))])
 def test_adequate_models_k_step_fit_is_non_increasing_in_k_on_a_real_record(refdata, structure, orders):
-    """The issue's criterion on models of the orders the study settles on for the rig (ARX 5, ARMAX 6,
-    OE 3, nk = 2): the FIT at k = 1, 5, 50, 500, N − 1 never rises (to rounding) and ends at the
+    """The issue's criterion on models of adequate orders for the rig (ARX 5, ARMAX 6, OE 3, nk = 2, inside
+    the real sweep's grids; not the poor models of the test above): the FIT at k = 1, 5, 50, 500, N − 1 never rises (to rounding) and ends at the
     simulation FIT.  On this record ARX falls 98.2 → 10.5 and ARMAX 99.1 → 12.8; OE's predictions
     do not depend on k.  (Not every record gives this for every model: on white_noise_2 ARMAX
     [6 6 6 2] scores -1.5 % at k = 500 and its simulation 2.2 %.)"""
