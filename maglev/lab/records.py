@@ -28,7 +28,7 @@ import numpy as np
 from maglev.lab.decision import Decision
 
 __all__ = ["Transient", "start_transient", "length_split", "switching_rate", "RecordAssessment", "assess",
-           "choose_records", "length_decision", "alpha_decision", "EST_MIN_S", "VAL_MIN_S", "INPUT_OUTSIDE_MAX",
+           "share_outside", "choose_records", "length_decision", "alpha_decision", "EST_MIN_S", "VAL_MIN_S", "INPUT_OUTSIDE_MAX",
            "OUTPUT_OUTSIDE_MAX"]
 
 EST_MIN_S = 10.0  # lab §3.4: at least 10 s of estimation data
@@ -158,6 +158,13 @@ class RecordAssessment:
                 "y outside curve": self.output_outside, "length shortfall": self.shortfall, "score": self.score}
 
 
+def share_outside(u: np.ndarray, region: tuple[float, float]) -> float:
+    """The share of input samples ``u`` outside the working ``region`` (u_min, u_max), to rounding."""
+    lo, hi = region
+    eps = 1e-9 * max(1.0, abs(hi))
+    return float(np.mean((u < lo - eps) | (u > hi + eps)))
+
+
 def assess(name: str, input_class: str, u: np.ndarray, y: np.ndarray, Ts: float, region: tuple[float, float],
            curve: tuple[float, float]) -> RecordAssessment:
     """Measure one record against the working ``region`` (u_min, u_max) and the static ``curve``'s ȳ range
@@ -170,8 +177,7 @@ def assess(name: str, input_class: str, u: np.ndarray, y: np.ndarray, Ts: float,
     width = hi - lo
     u_low, u_high = float(u.min()), float(u.max())
     coverage = max(0.0, min(u_high, hi) - max(u_low, lo)) / width
-    eps = 1e-9 * max(1.0, abs(hi))
-    input_outside = float(np.mean((u < lo - eps) | (u > hi + eps)))
+    input_outside = share_outside(u, region)
     c_lo, c_hi = curve
     tol = CURVE_TOLERANCE * (c_hi - c_lo)
     output_outside = float(np.mean((y < c_lo - tol) | (y > c_hi + tol)))

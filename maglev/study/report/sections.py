@@ -15,14 +15,12 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-from maglev.lab.records import INPUT_OUTSIDE_MAX
+from maglev.lab.records import EST_MIN_S, INPUT_OUTSIDE_MAX, VAL_MIN_S, share_outside
 from maglev.model import CANCEL_TOL, PolyModel
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.ranking import validation_note
-
-MIN_EST_S, MIN_VAL_S = 10.0, 7.0  # the lab's minimum estimation / validation lengths (§3.4)
 
 
 # ---------------------------------------------------------------------------- HTML helpers
@@ -160,8 +158,7 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decis
         trim = int(ds["preprocess"]["trim"])
         u = prep.raw.u[trim:]
         lo, hi = float(np.min(u)), float(np.max(u))
-        eps = 1e-9 * max(1.0, abs(u_hi))
-        outside[name] = float(np.mean((u < u_lo - eps) | (u > u_hi + eps))) if u_hi > u_lo else math.nan
+        outside[name] = share_outside(u, (u_lo, u_hi)) if u_hi > u_lo else math.nan
         cover = (hi - lo) / (u_hi - u_lo) if u_hi > u_lo else math.nan
         alpha = ds.get("alpha") if ds["input_class"] == "binary" else None
         text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): [{num(lo)}, {num(hi)}] A, "
@@ -200,7 +197,7 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict, decisions:
     for name, prep in datasets.items():
         pp = configs[name]["dataset"]["preprocess"]
         est_s, val_s = prep.est.N * prep.est.Ts, prep.val.N * prep.val.Ts
-        ok = est_s >= MIN_EST_S and val_s >= MIN_VAL_S
+        ok = est_s >= EST_MIN_S and val_s >= VAL_MIN_S
         rows.append({"dataset": name, "record (samples)": prep.raw.N, "trimmed": int(pp["trim"]),
                      "Ts (ms)": 1000 * prep.data.Ts, "estimation": f"{prep.est.N} samples = {num(est_s)} s",
                      "validation": f"{prep.val.N} samples = {num(val_s)} s",
