@@ -125,8 +125,9 @@ def working_region(lab: dict, lab_png: dict, ts_used: list[float], decisions: di
     text = (f"A staircase of {esc(lab.get('staircase', 'staircase'))} steps the input over the plant's [0, 10] A; "
             f"getStationaryAverages (Appendix A) averages the last part of each step's response, after its "
             f"transient. The working region is the widest range of levels on which ȳ against ū stays on a "
-            f"straight line (every point within 5 % of the ȳ range from the least-squares line, every "
-            f"neighbour-to-neighbour slope within 0.5–1.5 times its slope): <b>ū ∈ [{num(g('lab.u_min'))}, "
+            f"straight line and off the saturation plateau (every level near the least-squares line, every "
+            f"level-to-level slope near the line's; the bands are the decision's rule below): "
+            f"<b>ū ∈ [{num(g('lab.u_min'))}, "
             f"{num(g('lab.u_max'))}] A</b>, slope {num(g('lab.slope'), 3)} {Y_UNIT}/{U_UNIT}, working point "
             f"<b>u* = (u_min + u_max)/2 = {num(g('lab.u_star'))} A</b>. Below it the lower magnet still rests on its "
             "seat, above it the current regulator saturates, so the slope changes there, as the figure beside shows.")
