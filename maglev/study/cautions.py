@@ -133,9 +133,9 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     every order, with the parsimony rule: the smallest order within ``margin`` FIT points of the best.
 
     Returns ``{"chosen", "best", "grid", "fit": {order: mean FIT}, "datasets", "edge", "suggest", "bla",
-    "bla_datasets"}`` (None with fewer than two orders).  ``chosen`` is the orders decision's
-    (:func:`maglev.lab.orders.final_order`: an order whose models move away from the best linear approximation
-    does not count).  ``edge`` is ``"upper"`` when the chosen order is the
+    "bla_datasets", "cancellations"}`` (None with fewer than two orders).  ``chosen`` is the orders decision's
+    (:func:`maglev.lab.orders.final_order`: the orders from the first one whose added poles are cancelled by
+    zeros, and an order whose models move away from the best linear approximation, do not count).  ``edge`` is ``"upper"`` when the chosen order is the
     largest swept (every lower order simulates more than ``margin`` worse: the FIT still rises at the top of the
     grid), ``"lower"`` when the smallest swept order (> 1) simulates more than ``margin`` better than every other
     (the FIT falls as the order rises from the bottom), else None: the FIT levels off inside the grid or within
@@ -153,14 +153,15 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     grid = list(fit)
     best = max(fit, key=fit.get)
     bla, n_bla = _bla_by_order(runs)
-    chosen, settled = final_order(fit, margin, bla)  # the orders decision's rule (maglev.lab.orders)
+    cancel = cancellations_by_order(runs, list(by.index))
+    chosen, settled = final_order(fit, margin, bla, cancel)  # the orders decision's rule (maglev.lab.orders)
     edge, suggest = None, None
     if not settled:
         edge, suggest = "upper", grid[-1] + 1
     elif best == grid[0] > 1 and all(fit[best] - fit[o] > margin for o in grid[1:]):
         edge, suggest = "lower", grid[0] - 1
     return {"chosen": chosen, "best": best, "grid": grid, "fit": fit, "datasets": len(by), "edge": edge,
-            "suggest": suggest, "bla": bla, "bla_datasets": n_bla}
+            "suggest": suggest, "bla": bla, "bla_datasets": n_bla, "cancellations": cancel}
 
 
 def order_edges(table: pd.DataFrame) -> list[Caution]:
@@ -199,6 +200,16 @@ def _bla_by_order(runs: pd.DataFrame) -> tuple[dict[int, float], int]:
         return {}, 0
     by = runs.pivot_table(index="dataset", columns="order", values="g_bla_err", aggfunc="mean").dropna()
     return {int(o): float(v) for o, v in by.mean().items()}, len(by)
+
+
+def cancellations_by_order(runs: pd.DataFrame, datasets: list[str]) -> dict[int, float]:
+    """Mean number of near pole-zero cancellations per model (metric ``near_cancellations``) by order over the
+    ``datasets`` (those swept at every order); {} when the runs did not log it."""
+    if "near_cancellations" not in runs or runs["near_cancellations"].isna().all():
+        return {}
+    by = runs[runs["dataset"].isin(datasets)].pivot_table(index="dataset", columns="order",
+                                                            values="near_cancellations", aggfunc="mean").dropna()
+    return {int(o): float(v) for o, v in by.mean().items()}
 
 
 def working_points(datasets: dict[str, float], u_star: float | None, width: float | None) -> list[Caution]:

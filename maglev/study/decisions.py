@@ -334,15 +334,16 @@ PHYSICS_ORDER = 4  # states of the physical model (two masses, positions and vel
 
 def orders_of_table(table) -> Decision | None:
     """The orders decision (:func:`maglev.lab.orders.orders_decision`) of a ranked sweep's table: per structure
-    the mean validation simulation FIT and AIC by order over the datasets swept at every order (as
-    :func:`maglev.study.cautions.order_choice` averages them); None with fewer than two orders."""
+    the mean validation simulation FIT, AIC, distance to the BLA and near pole-zero cancellations by order over
+    the datasets swept at every order (as :func:`maglev.study.cautions.order_choice` averages them); None with
+    fewer than two orders."""
     from maglev.lab.orders import orders_decision
 
     if table is None or table.empty or not {"structure", "order", "dataset", "val_fit_sim"} <= set(table):
         return None
-    from maglev.study.cautions import _bla_by_order
+    from maglev.study.cautions import _bla_by_order, cancellations_by_order
 
-    fit, aic, bla = {}, {}, {}
+    fit, aic, bla, cancel = {}, {}, {}, {}
     for st, runs in table.groupby("structure", sort=False):
         by = runs.pivot_table(index="dataset", columns="order", values="val_fit_sim", aggfunc="mean").dropna()
         if by.shape[1] < 2 or by.empty:
@@ -352,15 +353,15 @@ def orders_of_table(table) -> Decision | None:
             a = runs[runs["dataset"].isin(by.index)].groupby("order")["aic"].mean()
             aic[str(st)] = {int(o): float(v) for o, v in a.items() if int(o) in fit[str(st)]}
         bla[str(st)] = _bla_by_order(runs)[0]
-    return orders_decision(fit, aic, PHYSICS_ORDER, bla=bla) if fit else None
+        cancel[str(st)] = cancellations_by_order(runs, list(by.index))
+    return orders_decision(fit, aic, PHYSICS_ORDER, bla=bla, cancellations=cancel) if fit else None
 
 
-def with_orders(content: dict | None, table) -> dict | None:
-    """A ``decisions.json`` content with the orders decision of the ranked ``table`` added (None when there is
-    no orders decision); the caller logs it on the parent run again, whole."""
+def with_orders(content: dict | None, orders: Decision | None) -> dict | None:
+    """A ``decisions.json`` content with the ranked runs' ``orders`` decision (:func:`orders_of_table`) added
+    (None when there is none); the caller logs it on the parent run again, whole."""
     from maglev.lab.decision import write_decisions
 
-    dec = orders_of_table(table)
-    if dec is None:
+    if orders is None:
         return None
-    return {**(content or {}), **write_decisions([dec])}
+    return {**(content or {}), **write_decisions([orders])}

@@ -4,7 +4,8 @@ Reads the FINISHED model runs of a sweep (:mod:`maglev.study.store`), ranks them
 ``val_fit`` — ties go to the simpler model (fewer ``n_params``) — and builds what the
 ranking run logs (:func:`log_ranking`; ``kind=ranking``, tag ``sweep_parent``; not a
 child, so the sweep's run counts stay those of its models): the full table and the top
-four (CSV and Markdown), best vs worst (Bode, pole-zero maps, residual correlations)
+four (CSV and Markdown; column ``final_order``: whether the run's order is its structure's
+final order by the orders decision, :mod:`maglev.lab.orders`), best vs worst (Bode, pole-zero maps, residual correlations)
 and, for one structure, binary- vs uniform-input models (FIT table and plot, plus FIT of
 every such model on every one of their validation sets, so they are also compared on
 the same data).  ``maglev rank`` and the end-of-sweep callback call it.
@@ -30,7 +31,8 @@ from maglev.validation import ResidResult
 
 TOP = 4
 TABLE_COLUMNS = ["rank", "name", "structure", "orders", "dataset", "input_class", "val_fit", "val_fit_naive",
-                 "val_fit_sim", "n_params", "val_dataset", "aic", "whiteness_pvalue", "independence_pvalue", "run_id"]
+                 "val_fit_sim", "n_params", "final_order", "val_dataset", "aic", "whiteness_pvalue",
+                 "independence_pvalue", "run_id"]
 
 
 # ---------------------------------------------------------------------------- ranking
@@ -46,6 +48,16 @@ def rank_table(runs: pd.DataFrame) -> pd.DataFrame:
     t["n_params"] = t["n_params"].round().astype("Int64")
     t["order"] = [model_order(o) for o in t["orders"]]
     return t[TABLE_COLUMNS + [c for c in t.columns if c not in TABLE_COLUMNS]]
+
+
+def mark_final_orders(table: pd.DataFrame, orders) -> pd.DataFrame:
+    """``table`` with ``final_order``: whether each run's order is its structure's final order in the orders
+    decision ``orders`` (:class:`maglev.lab.decision.Decision` or None); a structure the decision does not cover
+    (swept at one order) has nothing to choose between, so each of its runs is at its final order."""
+    choice = orders.choice if orders is not None else {}
+    t = table.copy()
+    t["final_order"] = [st not in choice or o == choice[st] for st, o in zip(t["structure"], t["order"])]
+    return t
 
 
 def model_order(orders: str) -> float:
@@ -123,6 +135,7 @@ class Ranking:
     comparison: pd.DataFrame | None
     common: pd.DataFrame | None
     models: dict  # run id -> PolyModel (best, worst and the compared runs)
+    orders: Any  # the orders decision of the ranked runs (maglev.lab.decision.Decision), None without one
     configs: dict  # dataset name -> the logged config of one of its runs
     resids: dict  # run id -> ResidResult (best and worst)
     notes: list[str] = field(default_factory=list)
@@ -165,9 +178,12 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
     """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures; with
     ``draw=False`` only the table, the comparison's choice and the cautions (enough for :func:`top_text`
     and :func:`previous_ranking_run`)."""
+    from maglev.study.decisions import orders_of_table
     from maglev.study.figures import best_worst_figures, comparison_figure, png
 
     table = rank_table(sweep.runs)
+    orders = orders_of_table(table)
+    table = mark_final_orders(table, orders)
     chosen = choose_structure(table, structure)
     notes = []
     if chosen is None:
@@ -175,7 +191,8 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
     comp = comparison_table(table, chosen) if chosen else None
     if not draw:
         return Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=None, models={},
-                       configs={}, resids={}, notes=notes, cautions=sweep_cautions(sweep, table, comp))
+                       orders=orders, configs={}, resids={}, notes=notes,
+                       cautions=sweep_cautions(sweep, table, comp))
     wanted = [table.iloc[0], table.iloc[-1]] + ([r for _, r in comp.iterrows()] if comp is not None else [])
     models = {r["run_id"]: load_model(sweep.client, r["run_id"]) for r in wanted}
     best, worst = table.iloc[0], table.iloc[-1]
@@ -188,7 +205,7 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
     except (SweepError, OSError, ValueError) as exc:  # e.g. a record no longer where it was
         notes.append(f"datasets not rebuilt (no FIT on common validation data): {exc}")
     ranking = Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=cross,
-                      models=models, configs=configs, resids=resids, notes=notes,
+                      models=models, orders=orders, configs=configs, resids=resids, notes=notes,
                       cautions=sweep_cautions(sweep, table, comp))
     named = {k: replace(models[r["run_id"]], name=f"{k}: {r['name']}") for k, r in (("best", best), ("worst", worst))}
     figs = best_worst_figures(named["best"], named["worst"], resids[best["run_id"]], resids[worst["run_id"]],
@@ -248,6 +265,12 @@ def tables(r: Ranking) -> dict[str, str]:
     return out
 
 
+def final_text(row) -> str:
+    """Whether a ranked run's order is its structure's final order (column ``final_order``), in two words."""
+    final = row.get("final_order")
+    return "" if final is None or pd.isna(final) else "final order" if bool(final) else "not the final order"
+
+
 def top_text(r: Ranking) -> str:
     """The top four as plain text for the terminal."""
     lines = [f"Top {min(TOP, len(r.table))} of {len(r.table)} FINISHED runs of sweep {r.sweep.name!r} "
@@ -256,7 +279,7 @@ def top_text(r: Ranking) -> str:
         lines.append(f"  {row['rank']}. {row['val_fit']:7.2f} %  {row['name']:<32s}  "
                      f"naive {row['val_fit_naive']:6.2f} %  sim {row['val_fit_sim']:7.2f} %  "
                      f"n_params={int(row['n_params']) if not pd.isna(row['n_params']) else '?'}  "
-                     f"val: {row['val_dataset']}")
+                     f"val: {row['val_dataset']}  {final_text(row)}")
     note = validation_note(r.top)
     if note:
         lines.append(f"  note: {note}")
@@ -324,11 +347,13 @@ def _link(exp_id: str, run_id: str, text: str) -> str:
 
 def top_markdown(exp_id: str, top: pd.DataFrame) -> str:
     """The top four as a Markdown table whose names link to the runs."""
-    lines = ["| # | run | val FIT % | naive % | sim FIT % | parameters | validated on |", "|---|---|---|---|---|---|---|"]
+    lines = ["| # | run | val FIT % | naive % | sim FIT % | parameters | validated on | order |",
+             "|---|---|---|---|---|---|---|---|"]
     for _, row in top.iterrows():
         n = "?" if pd.isna(row["n_params"]) else int(row["n_params"])
         lines.append(f"| {int(row['rank'])} | {_link(exp_id, row['run_id'], row['name'])} | {row['val_fit']:.2f} | "
-                     f"{row['val_fit_naive']:.2f} | {row['val_fit_sim']:.2f} | {n} | {row['val_dataset']} |")
+                     f"{row['val_fit_naive']:.2f} | {row['val_fit_sim']:.2f} | {n} | {row['val_dataset']} | "
+                     f"{final_text(row)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -123,3 +123,35 @@ def artifact_paths(client, run_id: str, path: str | None = None) -> set[str]:
     for a in client.list_artifacts(run_id, path):
         out |= artifact_paths(client, run_id, a.path) if a.is_dir else {a.path}
     return out
+
+
+def rule_orders(runs: list, margin: float = 1.0) -> dict[str, tuple[int, list[int]]]:
+    """Each structure's (final order, swept grid), recomputed from FINISHED model ``runs``' logged metrics by the
+    orders decision's rule (maglev.lab.orders), written out here independently: the smallest order within
+    ``margin`` of the best mean simulation FIT among the orders that count — below the first order whose models
+    carry at least one more near cancellation each, per order added, than the order below's, and whose models'
+    mean distance to the BLA (where logged) is not larger than a lower order's.  Means are over the datasets, each
+    swept at every order of its structure (asserted)."""
+    import collections
+    import math
+
+    from maglev.study.ranking import model_order
+
+    by = collections.defaultdict(lambda: collections.defaultdict(list))  # (structure, metric) -> order -> values
+    datasets = {r.data.tags["dataset"] for r in runs}
+    for r in runs:
+        st, order = r.data.tags["structure"], int(model_order(r.data.tags["orders"]))
+        for metric in ("val_fit_sim", "g_bla_err", "near_cancellations"):
+            if metric in r.data.metrics:
+                by[st, metric][order].append(r.data.metrics[metric])
+    out = {}
+    for st in sorted({st for st, _ in by}):
+        assert all(len(v) == len(datasets) for v in by[st, "val_fit_sim"].values())
+        fit, d, cancel = ({o: sum(v) / len(v) for o, v in sorted(by[st, m].items())}
+                          for m in ("val_fit_sim", "g_bla_err", "near_cancellations"))
+        grid = list(fit)
+        cut = next((hi for lo, hi in zip(grid, grid[1:]) if cancel[hi] - cancel[lo] >= (hi - lo) - 1e-9), math.inf)
+        counted = [o for o in grid if o < cut and not any(o in d and p in d and d[o] > d[p] for p in grid if p < o)]
+        best = max(fit[o] for o in counted)
+        out[st] = (min(o for o in counted if fit[o] >= best - margin), grid)
+    return out

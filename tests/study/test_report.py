@@ -26,7 +26,7 @@ import pandas as pd
 import pytest
 from scipy.stats import spearmanr
 
-from .harness import all_runs, launch
+from .harness import all_runs, launch, rule_orders
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
 SECTION_IDS = ("preparation", "working-region", "inputs", "data", "structures", "top4", "binary-vs-uniform",
@@ -254,19 +254,23 @@ def test_on_the_smaller_uniform_range_the_wander_owns_more_of_the_validation_out
         assert m["val_fit_sim"] < min(WANDER_CEILING, m["bla_fit_ceiling"]), r.info.run_name
 
 
+def final_orders(store) -> dict[str, tuple[int, list[int]]]:
+    """Each structure's (final order, grid) by the orders rule, recomputed from the runs (harness.rule_orders)."""
+    from maglev.study.cautions import ORDER_MARGIN
+
+    return rule_orders([r for v in model_runs(store).values() for r in v], ORDER_MARGIN)
+
+
 def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     """The ranking's cautions (its own artifact) name an order-at-edge caution for exactly the structures whose
-    final order, recomputed here from the runs' logged metrics by the orders decision's rule (maglev.lab.orders:
-    the smallest order within ORDER_MARGIN of the best mean simulation FIT, among the orders whose models' mean
-    distance to the BLA is not larger than a lower order's), is the largest of its grid.  The sweep gives each
+    final order, recomputed here from the runs' logged metrics by the orders decision's rule (:func:`final_orders`),
+    is the largest of its grid.  The sweep gives each
     structure its grid (hydra.sweeper.orders): ARX's FIT still rises at 5 (its noise model 1/A needs more poles;
     its distance to the BLA falls from 4 to 5), so ARX is swept at 4 to 7; ARMAX's FIT rises from 4 to 5 with its
     distance to the BLA falling, so ARMAX is swept at 6 as well.  An order whose distance to the BLA grows does not
-    count.  The orders decision logged on the sweep's parent run then settles every structure inside its grid,
-    without a caution."""
+    count, nor does one whose added poles its models cancel.  The orders decision logged on the sweep's parent run
+    then settles every structure inside its grid, without a caution."""
     from maglev.lab.decision import read_decisions
-    from maglev.study.cautions import ORDER_MARGIN
-    from maglev.study.ranking import model_order
 
     store, reports, _ = lab_sweep
     client, _, runs = all_runs(store)
@@ -276,32 +280,45 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
         listed = json.load(fh)
     keys = [c["key"] for c in listed]
     assert len(keys) == int(ranking.data.metrics["n_cautions"])
-    fits = collections.defaultdict(lambda: collections.defaultdict(list))  # structure -> order -> sim FITs
-    dists = collections.defaultdict(lambda: collections.defaultdict(list))  # structure -> order -> g_bla_err
-    for ds_runs in model_runs(store).values():
-        for r in ds_runs:
-            st, order = r.data.tags["structure"], int(model_order(r.data.tags["orders"]))
-            fits[st][order].append(r.data.metrics["val_fit_sim"])
-            dists[st][order].append(r.data.metrics["g_bla_err"])
-    assert {st: sorted(by_order) for st, by_order in fits.items()} == {
+    chosen = final_orders(store)
+    assert {st: grid for st, (_, grid) in chosen.items()} == {
         "arx": [4, 5, 6, 7], "armax": [4, 5, 6], "oe": [4, 5], "bj": [4, 5]}
-    at_edge, final = set(), {}
-    for st, by_order in fits.items():
-        assert all(len(v) == 3 for v in by_order.values())
-        mean = {o: sum(v) / len(v) for o, v in sorted(by_order.items())}
-        d = {o: sum(v) / len(v) for o, v in dists[st].items()}
-        grid = list(mean)
-        counted = [o for o in grid if not any(d[o] > d[p] for p in grid if p < o)]
-        best = max(mean[o] for o in counted)
-        final[st] = min(o for o in counted if mean[o] >= best - ORDER_MARGIN)
-        if final[st] == grid[-1]:
-            at_edge.add(st)
+    final = {st: o for st, (o, _) in chosen.items()}
+    at_edge = {st for st, (o, grid) in chosen.items() if o == grid[-1]}
     assert {k.removeprefix("order_at_edge_") for k in keys if k.startswith("order_at_edge")} == at_edge
     parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
     with open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")) as fh:
         orders = read_decisions(json.load(fh))["orders"]
     assert orders.choice == final and orders.cautions == [] and at_edge == set()
     assert all(f"{st}: order {o} — mean simulation FIT" in " ".join(orders.reasons) for st, o in final.items())
+
+
+def test_the_recommended_models_are_at_the_settled_orders(lab_sweep):
+    """The conclusion's models for simulation and for one-step prediction are at their structure's settled order
+    (recomputed from the runs by :func:`final_orders`): the best simulation FIT and the best one-step FIT among the
+    runs at those orders; a run of another order that simulates higher is named with its FIT, not recommended."""
+    from maglev.study.ranking import model_order
+
+    store, reports, _ = lab_sweep
+    page = report_file(reports).read_text()
+    conclusion = html.unescape(re.search(r"<section id='conclusion'>(.*?)</section>", page, re.S).group(1))
+    final = {st: o for st, (o, grid) in final_orders(store).items() if o < grid[-1]}  # settled: a higher order swept
+    assert set(final) == {"arx", "armax", "oe", "bj"}
+    runs = [r for v in model_runs(store).values() for r in v]
+    at_final = [r for r in runs if int(model_order(r.data.tags["orders"])) == final[r.data.tags["structure"]]]
+    sim = max(at_final, key=lambda r: r.data.metrics["val_fit_sim"])
+    pred = max(at_final, key=lambda r: (r.data.metrics["val_fit"], -r.data.metrics["n_params"]))
+    assert f"For simulation (the output from the input alone) use {sim.info.run_name}: " in conclusion
+    assert f"For one-step prediction use {pred.info.run_name}: " in conclusion
+    head = conclusion.split("For simulation")[0]
+    assert "The model to use is chosen among the orders the orders rule settled on (§5: " in head
+    assert all(f"{st.upper()} {o}" in head for st, o in final.items())
+    higher = max(runs, key=lambda r: r.data.metrics["val_fit_sim"])
+    if higher is not sim and higher.data.metrics["val_fit_sim"] > sim.data.metrics["val_fit_sim"]:
+        assert (f"{higher.info.run_name} simulates higher, at {higher.data.metrics['val_fit_sim']:.2f} %" in conclusion
+                and "but is not recommended" in conclusion)
+    else:
+        assert "simulates higher" not in conclusion
 
 
 def test_the_default_sweeps_decisions_follow_the_labs_rules(lab_sweep):

@@ -15,7 +15,7 @@ import shutil
 
 import pytest
 
-from .harness import all_runs, launch
+from .harness import all_runs, launch, rule_orders
 
 pytestmark = [pytest.mark.slow, pytest.mark.realdata,
               pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
@@ -70,3 +70,27 @@ def test_real_report_prints_to_at_most_six_a4_pages_before_the_appendix(real_rep
     _, page = real_report
     pdf = print_pdf(page, tmp_path / "real.pdf")
     assert 0 < pages_before_appendix(pdf) <= PAGE_LIMIT
+
+
+def test_real_sweeps_orders_decision_and_conclusion_follow_the_orders_rule(real_report):
+    """The orders decision the real sweep logged is the rule recomputed from its runs (harness.rule_orders: near
+    cancellations count here, there is no BLA), and the conclusion's model for simulation is the best-simulating
+    run at those orders."""
+    import json
+
+    from maglev.lab.decision import read_decisions
+    from maglev.study.cautions import ORDER_MARGIN
+    from maglev.study.ranking import model_order
+
+    store, page = real_report
+    client, _, runs = all_runs(store)
+    models = [r for r in runs if r.data.tags.get("kind") == "model" and r.info.status == "FINISHED"]
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    with open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")) as fh:
+        orders = read_decisions(json.load(fh))["orders"]
+    final = {st: o for st, (o, _) in rule_orders(models, ORDER_MARGIN).items()}
+    assert orders.choice == final
+    at_final = [r for r in models if int(model_order(r.data.tags["orders"])) == final[r.data.tags["structure"]]]
+    sim = max(at_final, key=lambda r: r.data.metrics["val_fit_sim"])
+    conclusion = html.unescape(re.search(r"<section id='conclusion'>(.*?)</section>", page.read_text(), re.S).group(1))
+    assert f"For simulation (the output from the input alone) use {sim.info.run_name}: " in conclusion

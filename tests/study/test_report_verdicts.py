@@ -146,15 +146,18 @@ def test_the_best_vs_worst_section_reports_the_unpowered_test_from_the_models():
 
 
 def test_conclusion_names_the_model_for_simulation_and_for_prediction_and_changes_with_the_numbers():
+    # one order per structure: no orders decision, every model is a candidate
     table = pd.DataFrame([
-        {"rank": 1, "name": "bj bin", "val_fit": 98.6, "val_fit_naive": 81.8, "val_fit_sim": 6.9, "dcgain": 0.81,
-         "val_dataset": "bin[val]"},
-        {"rank": 2, "name": "bj wide", "val_fit": 91.3, "val_fit_naive": 83.9, "val_fit_sim": 27.1, "dcgain": 0.41,
-         "val_dataset": "wide[val]"},
-        {"rank": 3, "name": "oe bin", "val_fit": 23.9, "val_fit_naive": 81.8, "val_fit_sim": 23.9, "dcgain": 0.61,
-         "val_dataset": "bin[val]"}])
+        {"rank": 1, "name": "bj bin", "structure": "bj", "order": 4, "val_fit": 98.6, "val_fit_naive": 81.8,
+         "val_fit_sim": 6.9, "dcgain": 0.81, "val_dataset": "bin[val]"},
+        {"rank": 2, "name": "bj wide", "structure": "bj", "order": 4, "val_fit": 91.3, "val_fit_naive": 83.9,
+         "val_fit_sim": 27.1, "dcgain": 0.41, "val_dataset": "wide[val]"},
+        {"rank": 3, "name": "oe bin", "structure": "oe", "order": 4, "val_fit": 23.9, "val_fit_naive": 81.8,
+         "val_fit_sim": 23.9, "dcgain": 0.61, "val_dataset": "bin[val]"}])
     c = v.conclusion(table, slope=0.62)
     assert (c.simulation, c.prediction) == ("bj wide", "bj bin")
+    assert c.sentences[0] == ("No orders decision: each structure was swept at one order, so the model to use is "
+                              "chosen among all 3 models.")
     text = " ".join(c.sentences)
     assert "Where the static response matters, oe bin is the better choice" in text
     assert "on the same validation data oe bin (#3) simulates at 23.90 %" in text
@@ -164,6 +167,51 @@ def test_conclusion_names_the_model_for_simulation_and_for_prediction_and_change
     assert (c2.simulation, c2.prediction) == ("bj wide", None)
     assert "For one-step prediction no model is needed" in " ".join(c2.sentences)
     assert "Where the static response matters" not in " ".join(c2.sentences)
+
+
+def ranked_orders(rows: list[tuple], bla: dict[str, dict[int, float]]):
+    """A ranked table of (name, structure, order, dataset, val_fit, val_fit_naive, val_fit_sim) rows with its
+    orders decision (mean FIT by order over the datasets; ``bla``: mean distance to the BLA by order) and
+    ``final_order`` marked, as maglev.study.ranking.compute does."""
+    from maglev.lab.orders import orders_decision
+    from maglev.study.ranking import mark_final_orders
+
+    t = pd.DataFrame(rows, columns=["name", "structure", "order", "dataset", "val_fit", "val_fit_naive", "val_fit_sim"])
+    t = t.sort_values("val_fit", ascending=False, kind="mergesort").reset_index(drop=True)
+    t.insert(0, "rank", range(1, len(t) + 1))
+    t["val_dataset"] = t["dataset"] + "[val]"
+    fit = {st: g.groupby("order")["val_fit_sim"].mean().to_dict() for st, g in t.groupby("structure")}
+    orders = orders_decision(fit, bla=bla)
+    return mark_final_orders(t, orders), orders
+
+
+def test_a_higher_scoring_model_of_an_order_the_rule_does_not_choose_is_named_but_not_recommended():
+    rows = [("bj4 bin", "bj", 4, "bin", 98.5, 80.0, 41.2), ("bj5 bin", "bj", 5, "bin", 98.6, 80.0, 41.3),
+            ("bj4 uni", "bj", 4, "uni", 92.0, 84.0, 26.0), ("bj5 uni", "bj", 5, "uni", 92.1, 84.0, 25.5),
+            ("oe4 bin", "oe", 4, "bin", 41.3, 80.0, 41.3), ("oe5 bin", "oe", 5, "bin", 41.4, 80.0, 41.4),
+            ("oe4 uni", "oe", 4, "uni", 17.0, 84.0, 17.0), ("oe5 uni", "oe", 5, "uni", 19.5, 84.0, 19.5)]
+    away = {"bj": {4: 0.13, 5: 0.20}, "oe": {4: 0.40, 5: 0.50}}  # order 5 moves away from the BLA in both
+    table, orders = ranked_orders(rows, away)
+    assert orders.choice == {"bj": 4, "oe": 4}
+    c = v.conclusion(table, orders=orders)
+    assert (c.simulation, c.prediction) == ("oe4 bin", "bj4 bin")
+    assert c.sentences[0] == ("The model to use is chosen among the orders the orders rule settled on (§5: BJ 4, OE 4): "
+                              "4 of the 8 models.")
+    text = " ".join(c.sentences)
+    assert ("oe5 bin simulates higher, at 41.40 % (+0.10 points), but is not recommended: its order 5 is not OE's "
+            "final order 4 (its models move away from the best linear approximation) — by the orders rule (§5).") in text
+    assert ("The #1 by one-step FIT, bj5 bin (98.60 %, +0.10 points over bj4 bin), is not recommended: its order 5 is "
+            "not BJ's final order 4 (its models move away from the best linear approximation)") in text
+    # the numbers flip: OE's order 5 comes closer to the BLA and gains more than 1 point, so the rule settles OE at
+    # 5 (not settled: the largest swept) and its model is recommended, with no sentence against it
+    closer = {"bj": away["bj"], "oe": {4: 0.40, 5: 0.30}}
+    table, orders = ranked_orders(rows, closer)
+    assert orders.choice == {"bj": 4, "oe": 5}
+    c = v.conclusion(table, orders=orders)
+    assert c.simulation == "oe5 bin" and "simulates higher" not in " ".join(c.sentences)
+    assert "OE 5 (not settled: the largest swept)" in c.sentences[0]
+    assert c.sentences[0].startswith("The model to use is chosen among the final orders of the orders rule, not all "
+                                     "of them settled")
 
 
 @pytest.mark.parametrize("wn, zeta", [(80.0, 0.13), (220.0, 0.05), (30.0, 0.9)])

@@ -201,7 +201,7 @@ def rank_and_report(uri: str, experiment: str, parent: str | None, structure: st
                   f"(unchanged)\nMLflow UI:   {ui_hint(sweep, previous)}", flush=True)
             return previous, path.resolve()
     ranking = compute(sweep, structure)
-    decisions = with_orders(artifact_json(sweep.client, sweep.parent_id, "lab/decisions.json"), ranking.table)
+    decisions = with_orders(artifact_json(sweep.client, sweep.parent_id, "lab/decisions.json"), ranking.orders)
     if decisions:  # the last decision of lab/decisions.json, made from the ranked runs
         log_files(sweep.client, sweep.parent_id, {"lab/decisions.json": decisions})
     run_id = ranking_run_for(ranking)

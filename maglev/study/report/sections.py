@@ -241,23 +241,28 @@ def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) 
 
 def order_sentence(oc: dict) -> str:
     """The report's sentence on a structure's order (:func:`maglev.study.cautions.order_choice`): the mean
-    simulation FIT by order, the order the rule chooses, the orders that do not count because their models move
-    away from the best linear approximation, and where the choice lies in the swept grid."""
-    from maglev.lab.orders import away_from_bla
+    simulation FIT by order, the order the rule chooses, the orders that do not count (from the first one whose added
+    poles its models cancel, and those whose models move away from the best linear approximation), and where the
+    choice lies in the swept grid."""
+    from maglev.lab.orders import away_from_bla, cancelling_order
 
-    grid, chosen, bla = oc["grid"], oc["chosen"], oc["bla"]
+    grid, chosen, bla, cancel = oc["grid"], oc["chosen"], oc["bla"], oc.get("cancellations") or {}
     away = sorted(away_from_bla(bla, grid))
+    cut = cancelling_order(cancel, grid)
     listed = ", ".join(f"{o}: {num(f)} %" for o, f in oc["fit"].items())
     among = ""
+    if cut is not None:
+        among += (f" below order {cut}, whose added poles its models cancel with zeros (mean near cancellations per "
+                  "model " + ", ".join(f"{o}: {num(cancel[o])}" for o in grid if o in cancel) + ")")
     if away:
-        among = (" among the orders whose models do not move away from the best linear approximation (order(s) "
-                 f"{', '.join(map(str, away))} do: mean distance " + ", ".join(f"{o}: {num(bla[o], 3)}" for o in grid
-                                                                              if o in bla) + ")")
+        among += ((" and" if among else "") + " among the orders whose models do not move away from the best linear "
+                  f"approximation (order(s) {', '.join(map(str, away))} do: mean distance "
+                  + ", ".join(f"{o}: {num(bla[o], 3)}" for o in grid if o in bla) + ")")
     if oc["edge"]:
         where = f", at the {oc['edge']} edge of the swept orders: add order {oc['suggest']}."
     elif chosen == grid[0]:
-        counted = [o for o in grid if o > chosen and o not in away]
-        where = (", the smallest swept" + (f": the higher orders{' that count' if away else ''} add at most "
+        counted = [o for o in grid if o > chosen and o not in away and (cut is None or o < cut)]
+        where = (", the smallest swept" + (f": the higher orders{' that count' if away or cut else ''} add at most "
                                            f"{ORDER_MARGIN:g} point" if counted else "")
                  + " (no smaller order was swept).")
     else:
@@ -310,8 +315,13 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
         else:
             text += order_sentence(oc)
         n_cancel = sum(len(models[i].near_cancellations(tol)) for i in runs["run_id"])
+        final = runs[runs["final_order"].astype(bool)] if "final_order" in runs else runs.iloc[:0]
         if n_cancel:
-            text += f" {n_cancel} near pole-zero cancellation(s) (|p−z| &lt; {tol}) among its models: orders the data do not support."
+            at_final = sum(len(models[i].near_cancellations(tol)) for i in final["run_id"])
+            text += (f" {n_cancel} near pole-zero cancellation(s) (|p−z| &lt; {tol}) among its models"
+                     + (f", {at_final} of them at order {int(final['order'].iloc[0])}" if len(final) else "")
+                     + ": each a pole the data may not support; the orders decision stops where they grow by one "
+                       "per model and order.")
         lines.append(text)
     parts += [bullets(lines), table(order_summary(table_, models, tol)), decision(decisions, "orders"),
               decision(decisions, "delay")]
@@ -327,11 +337,36 @@ def top_four(ranking) -> str:
                 + (", ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(ranking.sweep.ignored.items()))
                    if ranking.sweep.ignored else "") + ". Beside each: y(t−1)'s FIT on the same data (val_fit_naive: "
                 "a model must beat it to add anything) and the simulation FIT (val_fit_sim: G alone).")
+    from maglev.lab.orders import statuses
+
+    status = statuses(ranking.orders)
     lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])} "
              f"(y(t−1): {num(r['val_fit_naive'])} %, simulation: {num(r['val_fit_sim'])} %), "
-             f"{r['n_params']} parameters" for _, r in ranking.top.iterrows()]
-    return section("top4", "6. Top four models", text, bullets(lines),
+             f"{r['n_params']} parameters; " + esc(order_place(r, status)) for _, r in ranking.top.iterrows()]
+    return section("top4", "6. Top four models", text, bullets(lines), para(esc(final_orders_text(ranking))),
                    para(f"<b>Note:</b> the top four were {esc(note)}.") if note else "")
+
+
+def order_place(row: pd.Series, status: dict[tuple[str, int], str]) -> str:
+    """A ranked run's order against its structure's final order (column ``final_order``, the orders decision's
+    ``status`` by (structure, order))."""
+    st, o = str(row["structure"]), int(row["order"])
+    if row["final_order"]:
+        return f"order {o}, {st.upper()}'s final order" if (st, o) in status else f"order {o}, the one swept"
+    why = status.get((st, o))
+    return f"order {o}, not {st.upper()}'s final order" + (f": {why}" if why else "")
+
+
+def final_orders_text(ranking) -> str:
+    """How many of the top four are at their structure's final order, and the best-ranked run that is."""
+    top, table = ranking.top, ranking.table
+    k = int(top["final_order"].sum())
+    if k == len(top):
+        return f"All {len(top)} are at their structure's final order (§5)."
+    first = table[table["final_order"].astype(bool)].iloc[0]
+    return (f"{k} of the top {len(top)} are at their structure's final order (§5); the other {len(top) - k} are at "
+            f"orders the orders rule does not choose: ranked here, not recommended (§9). The best-ranked model at a "
+            f"final order is #{int(first['rank'])} {first['name']} (FIT {num(first['val_fit'])} %).")
 
 
 def binary_vs_uniform(ranking, lab: dict) -> str:
@@ -424,7 +459,7 @@ def conclusion(ranking, lab: dict) -> str:
     """The model to use for what (simulation or one-step prediction) and why."""
     from maglev.study.report.verdicts import conclusion as decide
 
-    c = decide(ranking.table, lab.get("lab.slope"))
+    c = decide(ranking.table, lab.get("lab.slope"), ranking.orders)
     n = len(ranking.cautions)
     tail = (f"{n} caution(s) drawn from the numbers qualify the ranking (Appendix B)." if n else
             "No caution applies to the ranking (Appendix B).")
@@ -446,7 +481,7 @@ def cautions(items: list) -> str:
 def all_runs(ranking, models: dict, tol: float = CANCEL_TOL) -> str:
     """Appendix C: every ranked run, and every run's near cancellations."""
     cols = ["rank", "name", "structure", "orders", "dataset", "val_fit", "val_fit_naive", "val_fit_sim", "n_params",
-            "aic", "val_dataset"]
+            "aic", "final_order", "val_dataset"]
     flagged = [f"{esc(r['name'])}: {w} pole {cz(p)} vs zero {cz(z)} (|p−z| = {num(d, 3)})"
                for _, r in ranking.table.iterrows() for w, p, z, d in models[r["run_id"]].near_cancellations(tol)]
     return section("all-runs", "C. Every run", table(ranking.table[[c for c in cols if c in ranking.table]]),

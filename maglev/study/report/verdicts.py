@@ -328,30 +328,82 @@ class Conclusion:
     sentences: list[str]
 
 
-def conclusion(table: pd.DataFrame, slope: float | None = None) -> Conclusion:
+def _points(a: float, b: float) -> float:
+    """a − b as the two FITs printed with two decimals show it (so the difference stated beside them adds up)."""
+    return round(float(a), 2) - round(float(b), 2)
+
+
+def _orders_rule(table: pd.DataFrame, orders) -> tuple[str, str]:
+    """(the sentence stating among which models the conclusion chooses, "those" or "the") from the orders
+    decision ``orders`` and the ranked ``table``'s ``final_order`` column."""
+    from maglev.lab.orders import statuses
+
+    n, total = int(table["final_order"].sum()), len(table)
+    choice = orders.choice if orders is not None else {}
+    if not choice:
+        return (f"No orders decision: each structure was swept at one order, so the model to use is chosen among "
+                f"all {total} models.", "the")
+    status = statuses(orders)
+    unsettled = [st for st, o in choice.items() if status.get((st, o)) == "final, not settled"]
+    listed = ", ".join(f"{st.upper()} {o}" + (" (not settled: the largest swept)" if st in unsettled else "")
+                       for st, o in choice.items())
+    single = [st for st in dict.fromkeys(table["structure"]) if st not in choice]
+    if single:
+        listed += "; " + ", ".join(f"{st.upper()} its one swept order" for st in single)
+    head = ("the orders the orders rule settled on" if not unsettled
+            else "the final orders of the orders rule, not all of them settled")
+    return f"The model to use is chosen among {head} (§5: {listed}): {n} of the {total} models.", "those"
+
+
+def _not_final(row: pd.Series, orders) -> str:
+    """Why a run's order is not its structure's final order, from the orders decision's status of that order."""
+    from maglev.lab.orders import statuses
+
+    st, o = str(row["structure"]), int(row["order"])
+    why = statuses(orders).get((st, o))
+    final = orders.choice.get(st) if orders is not None else None
+    return (f"its order {o} is not {st.upper()}'s final order {final}" + (f" ({why})" if why else "")
+            + " — by the orders rule (§5)")
+
+
+def conclusion(table: pd.DataFrame, slope: float | None = None, orders=None) -> Conclusion:
     """The model to use for simulation (the highest simulation FIT: G alone reproduces the output) and for one-step
-    prediction (the highest one-step FIT, if it beats y(t−1) by NAIVE_MARGIN points; else y(t−1) itself), and why."""
-    sim = table.loc[table["val_fit_sim"].idxmax()]
-    top = table.iloc[0]
-    gain = float(top["val_fit"] - top["val_fit_naive"]) if "val_fit_naive" in table else math.inf
-    lines = [f"For simulation (the output from the input alone) use {sim['name']}: it simulates "
-             f"{sim['val_dataset']}'s validation data at FIT {sim['val_fit_sim']:.2f} %, the highest of the "
-             f"{len(table)} models (#{int(sim['rank'])} by one-step FIT)."]
-    if "dcgain" in sim and slope and math.isfinite(slope):
+    prediction (the highest one-step FIT, if it beats y(t−1) by NAIVE_MARGIN points; else y(t−1) itself), each
+    chosen among the runs at their structure's final order (``table["final_order"]``, from the orders decision
+    ``orders``: :class:`maglev.lab.decision.Decision` or None), and why; a run of another order that scores higher
+    is named with its number and the reason the orders rule gives against its order."""
+    if "final_order" not in table:
+        table = table.assign(final_order=True)
+    rule, those = _orders_rule(table, orders)
+    pool = table[table["final_order"].astype(bool)]
+    sim = pool.loc[pool["val_fit_sim"].idxmax()]
+    top = pool.iloc[0]
+    gain = _points(top["val_fit"], top["val_fit_naive"]) if "val_fit_naive" in pool else math.inf
+    lines = [rule, f"For simulation (the output from the input alone) use {sim['name']}: it simulates "
+             f"{sim['val_dataset']}'s validation data at FIT {sim['val_fit_sim']:.2f} %, the highest of {those} "
+             f"{len(pool)} models (#{int(sim['rank'])} by one-step FIT)."]
+    if "dcgain" in pool and slope and math.isfinite(slope):
         lines[-1] += (f" Its static gain {sim['dcgain']:.3f} cm/A is {100 * (sim['dcgain'] / slope - 1):+.0f} % from "
                       f"the staircase slope {slope:.3f} cm/A.")
         off = abs(sim["dcgain"] / slope - 1.0)
-        matching = table[(table["dcgain"] / slope - 1.0).abs() <= GAIN_TOL]
+        matching = pool[(pool["dcgain"] / slope - 1.0).abs() <= GAIN_TOL]
         if off > GAIN_TOL and not matching.empty:
             alt = matching.loc[matching["val_fit_sim"].idxmax()]
             lines.append(f"Where the static response matters, {alt['name']} is the better choice: its static gain "
                          f"{alt['dcgain']:.3f} cm/A is within {GAIN_TOL:.0%} of the slope, and it simulates "
                          f"{alt['val_dataset']} at {alt['val_fit_sim']:.2f} %.")
+    higher = table.loc[table["val_fit_sim"].idxmax()]
+    if not higher["final_order"] and higher["val_fit_sim"] > sim["val_fit_sim"]:
+        lines.append(f"{higher['name']} simulates higher, at {higher['val_fit_sim']:.2f} % "
+                     f"({_points(higher['val_fit_sim'], sim['val_fit_sim']):+.2f} points), but is not recommended: "
+                     f"{_not_final(higher, orders)}.")
+    label = (f"The #1 by one-step FIT, {top['name']}," if int(top["rank"]) == 1 else
+             f"The best of {those} by one-step FIT, {top['name']} (#{int(top['rank'])}),")
     if sim["name"] != top["name"]:
-        same = table[table["val_dataset"] == top["val_dataset"]]
+        same = pool[pool["val_dataset"] == top["val_dataset"]]
         rival = same.loc[same["val_fit_sim"].idxmax()]
-        lines.append(f"The #1 by one-step FIT, {top['name']}, simulates at {top['val_fit_sim']:.2f} %: its one-step "
-                     "FIT comes from the noise model's use of past outputs, not from G"
+        lines.append(f"{label} simulates at {top['val_fit_sim']:.2f} %: its "
+                     "one-step FIT comes from the noise model's use of past outputs, not from G"
                      + (f"; on the same validation data {rival['name']} (#{int(rival['rank'])}) simulates at "
                         f"{rival['val_fit_sim']:.2f} %." if rival["name"] != top["name"] else "."))
     if gain >= NAIVE_MARGIN:
@@ -362,7 +414,12 @@ def conclusion(table: pd.DataFrame, slope: float | None = None) -> Conclusion:
             lines.append("One model serves both purposes.")
     else:
         prediction = None
-        lines.append(f"For one-step prediction no model is needed: the #1, {top['name']}, scores {top['val_fit']:.2f} % "
-                     f"and y(t−1) alone {top['val_fit_naive']:.2f} % on the same data ({gain:+.2f} points, less than "
-                     f"{NAIVE_MARGIN:g}).")
+        lines.append(f"For one-step prediction no model is needed: {top['name']} (#{int(top['rank'])}), the best of "
+                     f"{those} models one step ahead, scores {top['val_fit']:.2f} % and y(t−1) alone "
+                     f"{top['val_fit_naive']:.2f} % on the same data ({gain:+.2f} points, less than {NAIVE_MARGIN:g}).")
+    first = table.iloc[0]
+    if not first["final_order"]:
+        lines.append(f"The #1 by one-step FIT, {first['name']} ({first['val_fit']:.2f} %, "
+                     f"{_points(first['val_fit'], top['val_fit']):+.2f} points over {top['name']}), is not recommended: "
+                     f"{_not_final(first, orders)}.")
     return Conclusion(simulation=str(sim["name"]), prediction=prediction, sentences=lines)
