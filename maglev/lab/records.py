@@ -266,12 +266,21 @@ def length_decision(rows: Sequence[dict]) -> Decision:
     """The data-length decision from one row per dataset: ``dataset``, ``transient_s`` (detected), ``trim_s``
     and ``split`` (used), ``est_s``, ``val_s``.  A caution names every dataset below the lab's minimum and
     every trim shorter than the detected transient; a trim other than the detected transient was set by the
-    config (``forced``)."""
+    config (``forced``), and a reason says why it is kept (longer than the transient: it drops the transient all
+    the same) or what it leaves in (shorter)."""
     choice, reasons, cautions = {}, [], []
     set_by_config = [r["dataset"] for r in rows if abs(r["trim_s"] - r["transient_s"]) > 1e-9]
-    if set_by_config:
-        reasons.append(f"The trim of {', '.join(set_by_config)} is set by the config (dataset.preprocess.trim), "
-                       "not the detected start transient beside it.")
+    longer = [r["dataset"] for r in rows if r["trim_s"] - r["transient_s"] > 1e-9]
+    shorter = [n for n in set_by_config if n not in longer]
+    if longer:
+        reasons.append(f"The trim of {', '.join(longer)} is set by the config (dataset.preprocess.trim), not the "
+                       "detected start transient beside it, and kept: it is longer than the transient, so the "
+                       "transient is dropped all the same and only settled output goes too; whether the lab's "
+                       "minimum is still met is stated per dataset below.")
+    if shorter:
+        reasons.append(f"The trim of {', '.join(shorter)} is set by the config (dataset.preprocess.trim), shorter "
+                       "than the detected start transient beside it: part of the transient is identified (a caution "
+                       "below).")
     for r in rows:
         name = r["dataset"]
         choice[name] = {"trim_s": r["trim_s"], "est_s": r["est_s"], "val_s": r["val_s"], "split": r["split"]}

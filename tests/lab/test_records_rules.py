@@ -90,6 +90,21 @@ def test_length_decision_cautions_only_when_the_minimum_is_not_met():
     assert d.reasons[0].endswith("the lab's minimum is met.") and d.reasons[1].endswith("below the lab's minimum.")
 
 
+def test_a_trim_set_by_the_config_is_kept_when_it_is_longer_than_the_detected_transient():
+    """The simulated datasets trim their config's 2 s, longer than the detected transient: the decision says the
+    trim is kept and why; a trim shorter than the transient is named as such, with a caution."""
+    longer = {"dataset": "sim", "transient_s": 0.5, "trim_s": 2.0, "split": 0.5, "est_s": 11.0, "val_s": 11.0}
+    d = length_decision([longer])
+    assert d.forced and d.cautions == []
+    assert d.reasons[0].startswith("The trim of sim is set by the config (dataset.preprocess.trim), not the detected "
+                                   "start transient beside it, and kept: it is longer than the transient")
+    shorter = {**longer, "trim_s": 0.25}
+    d = length_decision([shorter])
+    assert d.forced and "kept" not in d.reasons[0] and "shorter than the detected start transient" in d.reasons[0]
+    assert d.cautions == ["sim: the trim 0.25 s is shorter than the detected start transient 0.50 s."]
+    assert not length_decision([{**longer, "trim_s": 0.5}]).forced  # the rule's own trim
+
+
 def test_a_record_whose_input_leaves_the_region_is_refused_however_much_of_it_covers():
     """white_noise_4's case: U(1.5, 4.0) A covers the whole region [1.5, 3.5] A and its output stays on the curve,
     but 20 % of its input lies beyond the region's upper bound (lab §3.1: the input never exceeds the region's
