@@ -45,7 +45,7 @@ import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.linalg import toeplitz
+from scipy.linalg import cho_factor, cho_solve, toeplitz
 from scipy.stats import chi2
 
 from .least_squares import lagged_iv, lagged_lstsq
@@ -82,7 +82,7 @@ def best_minimum(
     the caller's evaluations at ``starts``, projected, with these ``fit_states``)."""
     search = Search(y, u, fit_states, max_iterations, tolerance, built=memo if memo is not None else {})
     for theta, ev in zip(starts, evaluated or []):
-        search.evaluations[spec, theta.tobytes()] = ev
+        search.remember(spec, theta, ev)
     return search.run(spec, starts, widen)
 
 
@@ -160,10 +160,14 @@ class Search:
     def _limit(bound: float | None, best: Minimum) -> float:
         return best.evaluation.loss if bound is None else min(bound, best.evaluation.loss)
 
+    def remember(self, spec: PolySpec, theta: np.ndarray, ev: Evaluation) -> None:
+        """Keep ``ev``, the caller's evaluation at the projected ``theta``, so that `_evaluate` need not repeat it."""
+        self.evaluations[spec, theta.tobytes()] = ev
+
     def _evaluate(self, spec: PolySpec, theta: np.ndarray) -> Evaluation:
         key = (spec, theta.tobytes())
         if key not in self.evaluations:
-            self.evaluations[key] = evaluate(spec, project(spec, theta), self.y, self.u, self.fit_states, False)
+            self.remember(spec, theta, evaluate(spec, project(spec, theta), self.y, self.u, self.fit_states, False))
         return self.evaluations[key]
 
     def _starts(self, spec: PolySpec) -> list[np.ndarray]:
@@ -208,9 +212,25 @@ def explains(e: np.ndarray, u: np.ndarray, lags: int = 25) -> bool:
         return r_e[0] == 0
     r_eu = r_eu / np.sqrt(r_e[0] * r_u[0])
     r_e, r_u = r_e[1:] / r_e[0], r_u / r_u[0]
-    weights, *_ = np.linalg.lstsq(toeplitz(r_u), r_eu, rcond=1e-10)
+    weights = _toeplitz_solve(r_u, r_eu)
     white, independent = _chi2_bounds(M)
     return N * float(r_e @ r_e) <= white and N * float(r_eu @ weights) <= independent
+
+
+def _toeplitz_solve(r: np.ndarray, b: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
+    """x with T x = b for the autocorrelation Toeplitz matrix T of ``r`` (positive semidefinite):
+    by Cholesky when T is well conditioned, else the minimum-norm least-squares solution
+    (a periodic input's T is singular)."""
+    T = toeplitz(r)
+    try:
+        factor = cho_factor(T, lower=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        factor = None
+    if factor is not None:
+        pivots = np.abs(np.diag(factor[0]))
+        if pivots.min() ** 2 > 1e3 * rcond * pivots.max() ** 2:
+            return cho_solve(factor, b, check_finite=False)
+    return np.linalg.lstsq(T, b, rcond=rcond)[0]
 
 
 @functools.lru_cache(maxsize=64)
