@@ -48,7 +48,8 @@ import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, toeplitz
+from scipy.linalg import cho_solve, toeplitz
+from scipy.linalg.lapack import dpocon, dpotrf
 from scipy.stats import chi2
 
 from .least_squares import lagged_iv, lagged_lstsq
@@ -223,17 +224,13 @@ def explains(e: np.ndarray, u: np.ndarray, lags: int = 25) -> bool:
 
 def _toeplitz_solve(r: np.ndarray, b: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
     """x with T x = b for the autocorrelation Toeplitz matrix T of ``r`` (positive semidefinite):
-    by Cholesky when T is well conditioned, else the minimum-norm least-squares solution
-    (a periodic input's T is singular)."""
+    by Cholesky when LAPACK's estimate of T's reciprocal condition number is well above
+    ``rcond`` (no singular value would be cut), else the minimum-norm least-squares solution
+    with that ``rcond`` (a periodic input's T is singular)."""
     T = toeplitz(r)
-    try:
-        factor = cho_factor(T, lower=True, check_finite=False)
-    except np.linalg.LinAlgError:
-        factor = None
-    if factor is not None:
-        pivots = np.abs(np.diag(factor[0]))
-        if pivots.min() ** 2 > 1e3 * rcond * pivots.max() ** 2:
-            return cho_solve(factor, b, check_finite=False)
+    upper, info = dpotrf(T, lower=0)
+    if info == 0 and dpocon(upper, float(np.abs(T).sum(axis=0).max()))[0] > 1e3 * rcond:
+        return cho_solve((upper, False), b, check_finite=False)
     return np.linalg.lstsq(T, b, rcond=rcond)[0]
 
 
