@@ -46,7 +46,7 @@ from ..data import IOData
 from ..initial_state import INITIAL_CONDITIONS
 from ..model import FitReport, PolyModel
 from .least_squares import regression, solve_regression
-from .prediction_error import evaluate, project, triangular_factor
+from .prediction_error import evaluate, project, r_factor, triangular_factor, with_fitted_states
 from .starts import best_minimum, nested_theta, starts
 from ..structures import PolySpec
 from ..structures import get as get_structure
@@ -241,6 +241,7 @@ def _rms(x: np.ndarray) -> float:
 
 
 POOR_CONDITIONING = 1e6  # condition number of the input's lag matrix above which the estimate is flagged
+CLEARLY_EXCITING = 1e-4  # relative singular values above this, estimated from the Gram matrix, need no SVD
 
 
 def _check_excitation(u: np.ndarray, spec: PolySpec, src: str) -> None:
@@ -252,12 +253,16 @@ def _check_excitation(u: np.ndarray, spec: PolySpec, src: str) -> None:
     mean left over by a non-integer number of periods).  An input that excites more directions
     but nearly collinearly — an oversampled band-limited multisine: rank 8 with condition number
     ≈ 1e7 — is estimated, with a warning, since least squares by QR loses only that condition
-    number's digits, not its square.
+    number's digits, not its square.  The SVD is skipped when the eigenvalues of the lag matrix's
+    Gram matrix already put every relative singular value above ``CLEARLY_EXCITING``.
     """
     order = spec.nb + spec.nf
     x = u - u.mean()
     n = x.size - order + 1
     lags = np.column_stack([x[order - 1 - k : order - 1 - k + n] for k in range(order)])
+    eig = np.linalg.eigvalsh(lags.T @ lags)  # squared singular values, each to within ~eps × the largest
+    if eig[0] > CLEARLY_EXCITING**2 * eig[-1]:
+        return  # the SVD would find full rank and no poor conditioning: skip it
     sv = np.linalg.svd(lags, compute_uv=False)
     relative = sv / sv[0]
     rank = int(np.sum(relative > max(lags.shape) * np.finfo(float).eps))
@@ -305,7 +310,7 @@ def _pem(
     mode = initial_condition
     if initial_condition == "auto":
         mode = "auto→backcast" if fit_states else "auto→zero"
-    theta, e, r = scale.restore(ev.theta, ev.e, best.r_factor)
+    theta, e, r = scale.restore(ev.theta, ev.e, r_factor(spec, best, y, u))
     report = FitReport.from_residuals(  # fitted states count in d, backcast too (as in MATLAB)
         e, data.y, spec.n_params, ev.n_initial,
         method="prediction-error minimisation (Levenberg-Marquardt)",
@@ -327,7 +332,7 @@ def _wants_states(spec: PolySpec, starts: list[np.ndarray], y, u, initial_condit
         return False, []
     zero = [evaluate(spec, project(spec, t), y, u, False, False) for t in starts]
     best = min(zero, key=lambda ev: ev.loss)
-    fitted = evaluate(spec, best.theta, y, u, True, False).loss
+    fitted = with_fitted_states(spec, best).loss
     wanted = best.loss > AUTO_NORM_RATIO**2 * fitted
     return wanted, [] if wanted else zero
 

@@ -81,20 +81,15 @@ def lagged_gram(groups: list[Group], first: int) -> np.ndarray:
     L = int(lags.max())
     corr = np.empty((len(signals), len(signals), 2 * L + 1))  # corr[i, j, d + L] = Σ_τ x_i(τ) x_j(τ − d)
     pad = np.zeros(L)
-    for i, x in enumerate(signals):
-        padded = np.concatenate([pad, x, pad])
+    padded = [np.concatenate([pad, x, pad]) for x in signals]  # x(t) at t + L, zero outside the record
+    for i in range(len(signals)):
         for j in range(i, len(signals)):
-            corr[i, j] = np.correlate(padded, signals[j], "valid")
+            corr[i, j] = np.correlate(padded[i], signals[j], "valid")
             corr[j, i] = corr[i, j, ::-1]
     gram = corr[owner[:, None], owner[None, :], lags[None, :] - lags[:, None] + L]
+    stacked = np.stack(padded)
     for t0, t1 in ((0, first), (N, N + L)):  # rows outside first … N−1, zero-padded
-        index = np.arange(t0, t1)[:, None] - lags[None, :]
-        inside = (index >= 0) & (index < N)
-        index = np.clip(index, 0, N - 1)
-        edge = np.zeros(index.shape)
-        for k, x in enumerate(signals):
-            cols = owner == k
-            edge[:, cols] = np.where(inside[:, cols], x[index[:, cols]], 0.0)
+        edge = stacked[owner[None, :], np.arange(t0, t1)[:, None] - lags[None, :] + L]
         gram -= edge.T @ edge
     return gram * signs[:, None] * signs[None, :]
 

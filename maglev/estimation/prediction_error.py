@@ -2,7 +2,8 @@
 
 The prediction error is e = D/C (A y − B/F u).  Its derivative with respect to each
 coefficient is the same few filtered signals shifted in time, so one Jacobian costs
-five ``lfilter`` calls regardless of the order:
+at most five ``lfilter`` calls regardless of the order (four for BJ: the evaluation
+filters v by 1/C and applies D as a short convolution, which leaves v/C at hand):
 
     ∂e/∂a_i =  q⁻ⁱ D/C y          ∂e/∂b_j = −q^-(nk+j) D/(C F) u
     ∂e/∂c_i = −q⁻ⁱ e / C          ∂e/∂d_i =  q⁻ⁱ v / C   (v = A y − B/F u)
@@ -47,8 +48,8 @@ class Evaluation:
     """Prediction errors (and optionally their Jacobian) at one parameter vector.
 
     ``signals`` keeps what the Jacobian is built from (the polynomials, w = B/F u,
-    v = A y − w, the initial-state response and the state basis), so that an accepted
-    trial point needs no second filtering pass.
+    v = A y − w, v/C, the initial-state response and the state basis), so that an
+    accepted trial point needs no second filtering pass.
     """
 
     theta: np.ndarray
@@ -78,21 +79,31 @@ def evaluate(
     A, B, C, D, F = polys
     w = filt(B, F, u) if spec.nb else np.zeros_like(u)
     v = (filt(A, ONE, y) if spec.na else y) - w
-    e = filt(D, C, v)
-    s = None
-    basis = np.zeros((0, 0))
+    vc = filt(ONE, C, v)  # v/C, which the Jacobian's d columns are
+    e = filt(D, ONE, vc)  # D/C v, the numerator D applied as a short convolution
+    ev = Evaluation(theta, e, float(e @ e) / e.size, None, 0, (polys, w, v, vc, None, np.zeros((0, 0))))
     if fit_states:
-        basis = orthonormal_basis(state_responses(spec, C, F, y.size))
-        m = basis.shape[0]
-        if basis.size:
-            s = np.zeros_like(e)
-            s[:m] = -basis @ (basis.T @ e[:m])  # least-squares initial-state response
-            e = e + s
-    ev = Evaluation(theta, e, float(e @ e) / e.size, None, basis.shape[1], (polys, w, v, s, basis))
+        ev = with_fitted_states(spec, ev)
     if jacobian:
         ev.jac = np.empty((y.size, spec.n_params), order="F")
         fill_jacobian(spec, ev, y, u, ev.jac)
     return ev
+
+
+def with_fitted_states(spec: PolySpec, ev: Evaluation) -> Evaluation:
+    """``ev`` (evaluated with zero initial states) with the initial states fitted by least
+    squares: its prediction errors minus their projection on the state responses, so that
+    deciding whether to fit them costs no second filtering pass."""
+    polys, w, v, vc, _, _ = ev.signals
+    _, _, C, _, F = polys
+    basis = orthonormal_basis(state_responses(spec, C, F, ev.e.size))
+    m = basis.shape[0]
+    if not basis.size:
+        return ev
+    s = np.zeros_like(ev.e)
+    s[:m] = -basis @ (basis.T @ ev.e[:m])  # least-squares initial-state response
+    e = ev.e + s
+    return Evaluation(ev.theta, e, float(e @ e) / e.size, None, basis.shape[1], (polys, w, v, vc, s, basis))
 
 
 def orthonormal_basis(phi: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
@@ -136,7 +147,7 @@ def fill_jacobian(spec: PolySpec, ev: Evaluation, y: np.ndarray, u: np.ndarray, 
     ∂s/∂f_i = −q⁻ⁱ s/F.  With fitted states the columns are then projected on the
     complement of the state responses (variable projection).
     """
-    (A, B, C, D, F), w, v, s, basis = ev.signals
+    (A, B, C, D, F), w, v, vc, s, basis = ev.signals
     N = y.size
     col = 0
 
@@ -155,7 +166,7 @@ def fill_jacobian(spec: PolySpec, ev: Evaluation, y: np.ndarray, u: np.ndarray, 
     if spec.nc:
         shifted(-filt(ONE, C, ev.e), range(1, spec.nc + 1))
     if spec.nd:
-        shifted(filt(ONE, C, v), range(1, spec.nd + 1))
+        shifted(vc, range(1, spec.nd + 1))
     if spec.nf:
         df = filt(D, CF, w)
         if s is not None:
@@ -168,12 +179,17 @@ def fill_jacobian(spec: PolySpec, ev: Evaluation, y: np.ndarray, u: np.ndarray, 
 
 @dataclass
 class Minimum:
-    """Result of one minimisation run."""
+    """Result of one minimisation run.
+
+    ``r_factor``: the triangular factor of the Jacobian at the minimum when the run
+    factored it there, else None (`r_factor` computes it): a search runs many
+    minimisations and needs the factor of the one it returns only.
+    """
 
     evaluation: Evaluation
     iterations: int
     termination: str
-    r_factor: np.ndarray
+    r_factor: np.ndarray | None
 
 
 @single_threaded_blas
@@ -292,9 +308,15 @@ def minimise(
             break
     else:
         r = None
-    if r is None:  # the last accepted point has not been factored yet
-        r, _ = _factor(spec, current, y, u, buffer)
     return Minimum(current, iterations, termination, r)
+
+
+def r_factor(spec: PolySpec, minimum: Minimum, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The triangular factor R of the Jacobian at ``minimum`` (JᵀJ = RᵀR), factored now if the run did not."""
+    if minimum.r_factor is None:
+        buffer = np.empty((y.size, spec.n_params + 1), order="F")
+        minimum.r_factor = _factor(spec, minimum.evaluation, y, u, buffer)[0]
+    return minimum.r_factor
 
 
 def _factor(spec: PolySpec, ev: Evaluation, y, u, buffer: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
