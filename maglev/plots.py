@@ -29,13 +29,12 @@ from matplotlib.ticker import LogLocator, MaxNLocator
 from .data import IOData
 from .model import PolyModel
 from .uncertainty import FrequencyBounds, frequency_bounds, root_regions, step_bounds, step_length
+from .units import U_UNIT, Y_UNIT
 from .validation import ResidResult, format_p
 
 N_FREQUENCIES = 300
 MAX_POINTS = 2000  # samples drawn per line over a whole record (≈ 2 per pixel at the figures' size)
 DECADES = 3  # default Bode range: 10^-3 … 1 times the Nyquist frequency
-U_UNIT = "A"  # coil current
-Y_UNIT = "cm"  # upper magnet height as the rig's calibrated sensor reports it
 COMPARE_WINDOW = 0.1  # default zoom of plot_compare: the middle 10 % of the record
 MIN_WINDOW_SAMPLES = 50
 FLOOR_DB = 40.0  # a magnitude band whose lower bound reaches 0 is drawn down to 40 dB below the curve

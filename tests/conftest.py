@@ -70,6 +70,8 @@ SLOW = (
     "study/test_shutdown.py::test_a_signal_in_a_commit_is_raised_after_it_and_the_store_stays_writable",
     "study/test_cli.py::test_maglev_command_answers_a_missing_store_in_one_line",
     "study/test_cli.py::test_study_py_refuses_a_typo_with_the_key_and_creates_no_run",
+    "study/test_hostile.py::test_a_tracking_uri_mlflow_cannot_use_is_refused_in_one_line",  # three processes
+    "study/test_compose.py::test_every_job_of_the_lab_sweep_gets_hydras_own_config_from_one_composition_per_choice_of_groups",
     "study/test_cautions.py::test_ranking_and_report_follow_the_residual_tests_both_ways",
     "study/test_ranking.py::test_missing_store_unknown_and_empty_experiment_are_clear_errors",
     "study/test_ranking.py::test_ranking_twice_reuses_the_ranking_run_and_force_logs_a_new_one",

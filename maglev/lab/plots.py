@@ -15,7 +15,7 @@ from maglev.lab.input_design import AlphaChoice, OutputSpectrum
 from maglev.lab.sampling import RiseTime
 from maglev.lab.signals import rbs_spectrum
 from maglev.lab.working_region import WorkingRegion
-from maglev.plots import U_UNIT, Y_UNIT
+from maglev.units import U_UNIT, Y_UNIT
 
 __all__ = ["plot_working_region", "plot_rise_time", "plot_output_spectrum", "plot_alpha"]
 

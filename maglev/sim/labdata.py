@@ -25,7 +25,7 @@ from scipy.io import savemat
 from maglev.lab import signals
 from maglev.data import IOData
 from maglev.sim.plant import LABEL_TS, U_MAX, U_MIN, Levitator, rig
-from maglev.plots import U_UNIT, Y_UNIT
+from maglev.units import U_UNIT, Y_UNIT
 
 __all__ = ["ExperimentSpec", "CATALOGUE", "experiment", "input_signal", "write_catalogue", "main"]
 

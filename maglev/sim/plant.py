@@ -47,13 +47,16 @@ import math
 import tomllib
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import control as ct
 import numpy as np
 from scipy import optimize, signal
 
 from maglev.data import IOData
 from maglev.sim.forces import force_slopes, friction, magnet_forces, stribeck_level
+
+if TYPE_CHECKING:  # python-control (and the matplotlib it imports, 0.8 s) only where a model is linearised
+    import control as ct
 
 __all__ = ["LevitatorParams", "Equilibrium", "LinearModel", "Levitator", "PLANTS", "DEFAULT_PLANT", "rig",
            "plant_file", "U_MIN", "U_MAX"]
@@ -231,11 +234,15 @@ class LinearModel:
     @property
     def dc_gain(self) -> float:
         """Static gain dy/du in cm/A (zero where the regulator saturates)."""
+        import control as ct
+
         return float(np.real(ct.dcgain(self.sys_c)))
 
     def modes(self) -> list[tuple[float, float]]:
         """(natural frequency [rad/s, model time base], damping ratio) of each mode of ``sys_c``: each real pole,
         and each complex pair once."""
+        import control as ct
+
         return [(abs(p), -p.real / abs(p) if abs(p) > 0 else 1.0) for p in ct.poles(self.sys_c) if p.imag >= 0]
 
 
@@ -371,6 +378,8 @@ class Levitator:
             ])
             B = np.array([[0.0], [0.0], [k * dl_di * gain_u], [k * du_di * gain_u]])
             C = np.array([[0.0, dy_dh, 0.0, 0.0]])
+        import control as ct
+
         scale = self.time_scale()
         sys_c = ct.ss(A * scale, B * scale, C, np.zeros((1, 1)))
         nd = self.delay_samples(Ts)

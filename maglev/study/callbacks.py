@@ -240,7 +240,7 @@ class SweepCallback(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         try:
             self._start(config)
-        except NothingToDo:  # first: naming tracking.StoreProblem would import MLflow (tracking is lazy)
+        except SystemExit:  # NothingToDo, SweepRefused: first, as naming tracking.StoreProblem imports MLflow
             raise
         except tracking.StoreProblem as exc:  # says what to do in its one line
             raise SweepNotStarted(f"maglev: {credentials.redact(str(exc))}") from None

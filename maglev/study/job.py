@@ -21,11 +21,17 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import claims, credentials, render, tracking
+from maglev.study import credentials
 from maglev.study import progress as progress_
 from maglev.study.config import StudyConfigError, check, config_hash, flatten, plain_config
 from maglev.study.identify import identify, orders_string, run_label
+from maglev.study.lazy import lazy_module
 from maglev.validation import format_p
+
+# MLflow (1-2 s of imports) on first use: a run refused by its config ends before it
+claims = lazy_module("maglev.study.claims")
+render = lazy_module("maglev.study.render")
+tracking = lazy_module("maglev.study.tracking")
 
 log = logging.getLogger("maglev.study")
 ENTRY = "study.py"  # the runs' source in the MLflow UI

@@ -485,7 +485,7 @@ def dataset_entity(data, source: str | None, spec: dict | None = None):
     simulator, as code), schema ``u``, ``y`` and a profile with N, Ts, offsets and the units."""
     from mlflow.entities import Dataset
 
-    from maglev.plots import U_UNIT, Y_UNIT
+    from maglev.units import U_UNIT, Y_UNIT
 
     if source:
         kind, where = "local", json.dumps({"uri": source})

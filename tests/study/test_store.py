@@ -40,12 +40,21 @@ def remount(where: Path, options: str) -> None:
     subprocess.run(["mount", "-o", f"remount,{options}", str(where)], check=True)
 
 
-def a_store_with_runs(store: Path, migrated_db) -> str:
-    """A store with a FINISHED sweep of two runs; returns the id of one model run."""
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory, migrated_db) -> tuple[Path, str]:
+    """A store with a FINISHED sweep of two runs, made once for the file; (its folder, one model run's id).
+    Tests damage or remount copies of its database; the artifacts stay here, where the runs name them."""
+    store = tmp_path_factory.mktemp("finished")
     shutil.copyfile(migrated_db, store / "mlflow.db")
     launch(store, *SMALL)
     _, _, runs = all_runs(store)
-    return next(r.info.run_id for r in runs if r.data.tags.get("kind") == "model")
+    return store, next(r.info.run_id for r in runs if r.data.tags.get("kind") == "model")
+
+
+def a_store_with_runs(store: Path, finished: tuple[Path, str]) -> str:
+    """``store/mlflow.db``: a copy of the finished sweep's store; returns the id of one model run."""
+    shutil.copyfile(finished[0] / "mlflow.db", store / "mlflow.db")
+    return finished[1]
 
 
 def every_command_says(store: Path, run_id: str, needle: str, capsys) -> None:
@@ -72,12 +81,12 @@ def damage(db: Path, how: str) -> None:
 
 
 @pytest.mark.parametrize("how", ["truncated", "garbage"])
-def test_a_damaged_store_is_answered_in_one_line_by_every_command_and_a_sweep(tmp_path, migrated_db, capsys, how):
+def test_a_damaged_store_is_answered_in_one_line_by_every_command_and_a_sweep(tmp_path, finished, capsys, how):
     """Before: rank, report, reap and reproduce exited 1 with a traceback; 8 KB of garbage went unnoticed by
     every command and by a new sweep, though SQLite's integrity check fails."""
     from maglev.study import tracking
 
-    run_id = a_store_with_runs(tmp_path, migrated_db)
+    run_id = a_store_with_runs(tmp_path, finished)
     damage(tmp_path / "mlflow.db", how)
     tracking._checked.clear()  # this process checked the store before damaging it
     every_command_says(tmp_path, run_id, f"the MLflow store {tmp_path}/mlflow.db is damaged (", capsys)
@@ -87,14 +96,14 @@ def test_a_damaged_store_is_answered_in_one_line_by_every_command_and_a_sweep(tm
     assert "mv " in str(refused.value.code) and "\n" not in str(refused.value.code)
 
 
-def test_a_read_only_store_is_answered_in_one_line_and_reproduce_still_reads_it(tmp_path, migrated_db, capsys):
+def test_a_read_only_store_is_answered_in_one_line_and_reproduce_still_reads_it(tmp_path, finished, capsys):
     from maglev.study import tracking
     from maglev.study.cli import main
 
-    run_id = a_store_with_runs(tmp_path, migrated_db)
+    run_id = a_store_with_runs(tmp_path, finished)
     with tmpfs(tmp_path / "ro", "20m") as fs:  # a copy no process has open, so it can be remounted read-only
         shutil.copyfile(tmp_path / "mlflow.db", fs / "mlflow.db")
-        shutil.copytree(tmp_path / "artifacts", fs / "artifacts")
+        shutil.copytree(finished[0] / "artifacts", fs / "artifacts")
         remount(fs, "ro")
         tracking._checked.clear()
         from maglev.study.cli import main as cli
@@ -144,11 +153,11 @@ def test_a_store_left_half_made_by_an_older_version_is_repaired_and_the_launch_s
         assert sorted(r.info.status for r in runs if r.data.tags.get("kind") == "model") == ["FINISHED"] * 2
 
 
-def test_reproduce_takes_the_unique_prefix_the_ui_shows(tmp_path, migrated_db, capsys):
+def test_reproduce_takes_the_unique_prefix_the_ui_shows(tmp_path, finished, capsys):
     """The UI shows a run id's first 8 characters; before, only the whole id was accepted."""
     from maglev.study.cli import main
 
-    run_id = a_store_with_runs(tmp_path, migrated_db)
+    run_id = a_store_with_runs(tmp_path, finished)
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     capsys.readouterr()
     assert main(["reproduce", run_id[:8], "--tracking-uri", uri]) == 0
