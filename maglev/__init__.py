@@ -4,12 +4,36 @@ The library is plain numpy/scipy/python-control: ``maglev.data`` (records),
 ``maglev.estimation`` (ARX, ARMAX, OE, BJ, PEM), ``maglev.model`` (the fitted
 ``PolyModel``), ``maglev.validation`` (FIT, compare, resid).  Hydra and MLflow appear
 only in the study/tracking modules.
+
+The names below are imported on first use (PEP 562): ``from maglev import arx`` works as
+before, while a command that needs none of them (``maglev ui``, a launch refused by its
+config) does not pay for scipy.signal and the estimators (≈ 1 s of CPU per process).
 """
 
-from .data import IOData
-from .estimation import armax, arx, bj, oe, pem
-from .model import FitReport, PolyModel
-from .structures import PolySpec
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .data import IOData
+    from .estimation import armax, arx, bj, oe, pem
+    from .model import FitReport, PolyModel
+    from .structures import PolySpec
 
 __all__ = ["IOData", "PolyModel", "PolySpec", "FitReport", "arx", "armax", "oe", "bj", "pem"]
 __version__ = "0.1.0"
+_HOME = {"IOData": "data", "PolyModel": "model", "FitReport": "model", "PolySpec": "structures",
+         **{name: "estimation" for name in ("arx", "armax", "oe", "bj", "pem")}}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'maglev' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"maglev.{_HOME[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
