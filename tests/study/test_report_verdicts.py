@@ -71,6 +71,18 @@ def test_binary_vs_uniform_verdict_changes_with_the_numbers():
     assert any("uni_n is centred at 2.10 A, not at u* = 2.75 A" in s for s in cc.sentences)
 
 
+def test_binary_vs_uniform_compares_the_models_at_the_structures_final_order():
+    """With the orders decision settling at order 4, each record is represented by its order-4 model, although its
+    order-5 model scores higher on its own data; a record with no run at the final order keeps its best run."""
+    comp = comparison({d: OWN_CLASS[d][d] for d in DATASETS})
+    final = comp.assign(final_order=comp["orders"] == "[4]")
+    cc = v.class_comparison(final, common(OWN_CLASS), 2.75, 2.5)
+    assert cc.models == {"bin": "bj4 bin", "uni_w": "bj4 uni_w", "uni_n": "bj4 uni_n"}
+    assert cc.matrix.loc["uni_w", "bin"] == OWN_CLASS["uni_w"]["bin"] - 1.0  # the order-4 row of the common FITs
+    partial = comp.assign(final_order=(comp["orders"] == "[4]") & (comp["dataset"] != "bin"))
+    assert v.class_comparison(partial, common(OWN_CLASS)).models["bin"] == "bj5 bin"
+
+
 def facts(name: str, **kw) -> v.ModelFacts:
     base = dict(name=name, rank=1, val_fit=99.0, val_fit_sim=20.0, val_dataset="d[val]", explained=0.4, white=False,
                 whiteness_p=1e-9, independent=False, independence_p=1e-9, unit_poles=0, cancellations=0,

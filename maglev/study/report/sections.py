@@ -422,9 +422,9 @@ def binary_vs_uniform(ranking, lab: dict) -> str:
         return section("binary-vs-uniform", title, para(esc("; ".join(ranking.notes))))
     comp, st = ranking.comparison, ranking.structure
     parts = [para(f"Structure <b>{esc(st.upper())}</b> (the best-fitting structure with models of both input "
-                  "classes). Each record is represented by its model of the highest FIT on its own validation data, "
-                  "and every model is evaluated on every record's validation data (rows: estimated on, columns: "
-                  "validated on; one-step FIT %):")]
+                  "classes). Each record is represented by its model at the structure's final order (§5) with the "
+                  "highest FIT on its own validation data, and every model is evaluated on every record's validation "
+                  "data (rows: estimated on, columns: validated on; one-step FIT %):")]
     if ranking.common is None:
         parts.append(para(esc("; ".join(ranking.notes) or "no common validation data")))
         return section("binary-vs-uniform", title, *parts)

@@ -80,7 +80,7 @@ def records_head(outside: dict[str, float], limit: float, forced: bool | None) -
 # ---------------------------------------------------------------------------- binary vs uniform
 @dataclass
 class ClassComparison:
-    """One structure's models, one per estimation dataset (its best order), on every validation set."""
+    """One structure's models, one per estimation dataset (its best at the final order), on every validation set."""
 
     matrix: pd.DataFrame  # rows: estimation dataset, columns: validation dataset, one-step FIT %
     models: dict[str, str]  # estimation dataset -> the model's name
@@ -96,12 +96,16 @@ def class_comparison(comp: pd.DataFrame, common: pd.DataFrame, u_star: float | N
     """The lab's "which one is higher? discuss" (§3.7) for one structure.
 
     ``comp``: the structure's ranked runs (``name, dataset, input_class, val_fit, val_fit_naive``, optionally
-    ``u0``); ``common``: FIT % of each run (index: name) on each dataset's validation data (columns
-    ``<dataset>[val]``).  Each dataset is represented by its structure's model with the highest FIT on its own
-    validation data.  The verdict compares the best binary-input and the best uniform-input model on each common
+    ``u0`` and ``final_order``); ``common``: FIT % of each run (index: name) on each dataset's validation data
+    (columns ``<dataset>[val]``).  Each dataset is represented by its structure's model with the highest FIT on its
+    own validation data among the runs at the structure's final order (the orders decision, where ``final_order``
+    marks any of the dataset's runs; else among all its runs), so the comparison is of the models §5 settles on.  The verdict compares the best binary-input and the best uniform-input model on each common
     validation set; the discussion says whether each class wins on its own class, which model transfers best
     to the other records, how far each FIT is above y(t−1)'s on the same data, and which records sit at another
     operating point than u*."""
+    if "final_order" in comp:
+        final = comp["final_order"].astype(bool)
+        comp = comp[final | ~comp["dataset"].isin(comp.loc[final, "dataset"])]
     own = comp.loc[comp.groupby("dataset")["val_fit"].idxmax()].set_index("dataset")
     classes = {str(d): str(c) for d, c in own["input_class"].items()}
     datasets = sorted(own.index, key=lambda d: (classes[d], d))
