@@ -356,3 +356,12 @@ def test_the_binary_records_alpha_is_set_against_alpha_star_and_the_report_says_
     assert binary_alpha("real_binary_signal_4", {"alpha": None}, decisions) == alpha
     assert binary_alpha("real_binary_signal_4", {"alpha": None}, {}) is None
     assert binary_alpha("binary_a025", {"alpha": 0.25}, None) == 0.25
+
+
+def test_an_order_chosen_at_the_lower_edge_of_the_swept_orders_says_a_smaller_one_was_not_tried():
+    from maglev.study.report.sections import lower_edge_text
+
+    oc = {"grid": [4, 5]}
+    assert lower_edge_text(4, oc) == (" It is the smallest order swept: order 3 was not, so whether it would "
+                                      "simulate within 1 point as well is untested.")
+    assert lower_edge_text(5, oc) == "" and lower_edge_text(1, {"grid": [1, 2]}) == "" and lower_edge_text(4, None) == ""

@@ -293,6 +293,15 @@ def order_sentence(oc: dict) -> str:
             f"{among} is <b>{chosen}</b>{where}")
 
 
+def lower_edge_text(chosen: int, oc: dict | None) -> str:
+    """A sentence when the chosen order is the smallest swept one above 1: the rule takes the smallest order within
+    the margin of the best, so a smaller order, never swept, might have done as well; "" otherwise."""
+    if oc is None or int(chosen) != oc["grid"][0] or int(chosen) <= 1:
+        return ""
+    return (f" It is the smallest order swept: order {int(chosen) - 1} was not, so whether it would simulate within "
+            f"{ORDER_MARGIN:g} point as well is untested.")
+
+
 def order_summary(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> pd.DataFrame:
     """One row per structure: its mean simulation FIT (%) over the datasets at each swept order (the number an order
     is chosen by, one column per order: a grid of any size stays a few rows) and its near cancellations in all."""
@@ -332,6 +341,7 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
         chosen = (decisions or {}).get("orders")
         if chosen is not None and isinstance(chosen.choice, dict) and st in chosen.choice:
             text += f"Order <b>{esc(chosen.choice[st])}</b>, by the orders decision below."
+            text += esc(lower_edge_text(chosen.choice[st], oc))
         elif oc is None:
             text += f"One order swept ({esc(', '.join(sorted(set(runs['orders']))))}): no choice to motivate."
         else:
