@@ -365,3 +365,12 @@ def test_an_order_chosen_at_the_lower_edge_of_the_swept_orders_says_a_smaller_on
     assert lower_edge_text(4, oc) == (" It is the smallest order swept: order 3 was not, so whether it would "
                                       "simulate within 1 point as well is untested.")
     assert lower_edge_text(5, oc) == "" and lower_edge_text(1, {"grid": [1, 2]}) == "" and lower_edge_text(4, None) == ""
+
+
+def test_the_slowest_mode_is_matched_to_a_physical_mode_only_within_a_factor_two():
+    physics = [(225.9, 0.07), (80.9, 0.12)]
+    near = v.pole_zero_text(facts("m", dominant=(72.3, 0.2)), physics)
+    assert "slowest mode ωn = 72.3 rad/s, ζ = 0.20 (nearest mode of the linearised physics: 80.9 rad/s, ζ = 0.12)" in near
+    far = v.pole_zero_text(facts("m", dominant=(3.2, 1.0)), physics)
+    assert ("slowest mode ωn = 3.2 rad/s, ζ = 1.00, not a mode of the linearised physics (the nearest, 80.9 rad/s, "
+            "ζ = 0.12, is more than a factor 2 away)") in far

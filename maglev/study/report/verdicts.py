@@ -28,6 +28,7 @@ GAIN_TOL = 0.20  # a static gain within this relative distance of the staircase 
 SIM_MARGIN = 1.0  # simulation FIT points that make one model's G better than another's
 NAIVE_MARGIN = 1.0  # FIT points a model must gain over y(t−1) to add anything one step ahead
 WORKING_POINT_SHARE = 0.10  # mean input this far from u* (share of the working region's width) is another point
+MODE_RATIO = 2.0  # a model's mode within this factor of a physical mode's natural frequency is that mode
 
 
 def explained_share(fit_sim: float) -> float:
@@ -321,7 +322,10 @@ def pole_zero_text(f: ModelFacts, physics: list[tuple[float, float]] | None = No
         text += f"; slowest mode ωn = {wn:.1f} rad/s, ζ = {zeta:.2f}"
         if physics:
             pw, pz = min(physics, key=lambda m: abs(m[0] - wn))
-            text += f" (nearest mode of the linearised physics: {pw:.1f} rad/s, ζ = {pz:.2f})"
+            near = pw / MODE_RATIO <= wn <= pw * MODE_RATIO
+            text += (f" (nearest mode of the linearised physics: {pw:.1f} rad/s, ζ = {pz:.2f})" if near else
+                     f", not a mode of the linearised physics (the nearest, {pw:.1f} rad/s, ζ = {pz:.2f}, is more "
+                     f"than a factor {MODE_RATIO:g} away)")
         if bla_peak:
             text += f"; the BLA peaks at {bla_peak:.1f} rad/s"
     return text + "."
