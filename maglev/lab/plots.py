@@ -93,5 +93,7 @@ def plot_alpha(r: AlphaChoice, ax: Axes | None = None) -> Figure:
     ax.set_xlabel("ω / π (1 = the Nyquist frequency)")
     ax.set_ylabel("Φ_s(ω) (–, unit-variance signal)")
     ax.set_title(f"α* = {r.alpha_star:g}")
-    ax.legend(loc="best", fontsize="small")
+    low, high = ax.get_ylim()
+    ax.set_ylim(low, high * 12)  # room above the spectra for the legend, which otherwise hides α*'s curve
+    ax.legend(loc="upper center", fontsize="small", ncol=2)
     return ax.figure
