@@ -60,33 +60,40 @@ def plot_rise_time(r: RiseTime, ax: Axes | None = None) -> Figure:
 
 
 def plot_output_spectrum(r: OutputSpectrum, ax: Axes | None = None) -> Figure:
-    """|Y| against normalised frequency with the energy band shaded."""
+    """|Y| against normalised frequency with the energy band shaded, on a logarithmic frequency axis: the band of a
+    slow plant is a small fraction of the Nyquist range (under 2 % on the lab's records), invisible on a linear one."""
     ax = _axes(ax)
-    ax.semilogy(r.w / np.pi, r.magnitude, lw=0.6, color="tab:blue", label="|FFT(y - mean y)|")
+    keep = r.w > 0
+    ax.loglog(r.w[keep] / np.pi, r.magnitude[keep], lw=0.6, color="tab:blue", label="|FFT(y - mean y)|")
     ax.axvspan(r.band[0] / np.pi, r.band[1] / np.pi, color="tab:orange", alpha=0.3,
                label=f"{r.fraction:.0%} of the energy")
-    ax.set_xlabel("ω / π (rad/sample ÷ π; 1 = Nyquist of the record as identified, after decimation)")
+    ax.set_xlabel("ω / π (1 = the Nyquist frequency)")
     ax.set_ylabel(f"|Y| ({Y_UNIT})")
     ax.legend(loc="best", fontsize="small")
     return ax.figure
 
 
 def plot_alpha(r: AlphaChoice, ax: Axes | None = None) -> Figure:
-    """Binary-signal spectra for each α with the output's energy band shaded (the lab's Fig. 5)."""
+    """Binary-signal spectra for each α with the output's energy band shaded (the lab's Fig. 5), on a logarithmic
+    frequency axis from below the band's lower edge (α = 0's line at ω = 0 is drawn at the axis' left edge)."""
     ax = _axes(ax)
-    w = np.linspace(1e-3, np.pi - 1e-3, 600)
+    low = min(r.band[0] if r.band[0] > 0 else np.pi * 1e-3, np.pi * 1e-3) / 2
+    w = np.geomspace(low, np.pi - 1e-3, 600)
     for alpha, share in zip(r.alphas, r.shares):
         style = "-" if alpha == r.alpha_star else "--"
         if 0 < alpha < 1:
             ax.plot(w / np.pi, rbs_spectrum(alpha, w), style, label=f"α = {alpha:g} ({share:.0%} in band)")
         else:
-            where = 0.0 if alpha == 0 else 1.0
-            ax.axvline(where, ls=style, color="gray", label=f"α = {alpha:g}: line at ω = {where:g}π")
+            where, at = (w[0] / np.pi, "0 (left edge)") if alpha == 0 else (1.0, "π")
+            ax.axvline(where, ls=style, color="gray", label=f"α = {alpha:g}: line at ω = {at}")
     ax.axvspan(r.band[0] / np.pi, r.band[1] / np.pi, color="tab:orange", alpha=0.3,
                label="output energy band")
+    ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("ω / π (rad/sample ÷ π)")
+    ax.set_xlabel("ω / π (1 = the Nyquist frequency)")
     ax.set_ylabel("Φ_s(ω) (–, unit-variance signal)")
     ax.set_title(f"α* = {r.alpha_star:g}")
-    ax.legend(loc="best", fontsize="small")
+    low, high = ax.get_ylim()
+    ax.set_ylim(low, high * 12)  # room above the spectra for the legend, which otherwise hides α*'s curve
+    ax.legend(loc="upper center", fontsize="small", ncol=2)
     return ax.figure

@@ -55,8 +55,11 @@ def test_spectrum_and_alpha_figures_shade_the_energy_band():
     spec = output_spectrum(y, fraction=0.8)
     ax = plots.plot_output_spectrum(spec).axes[0]
     assert _span(ax) == pytest.approx((spec.band[0] / np.pi, spec.band[1] / np.pi))
+    # a band of a few thousandths of π is visible: the frequency axes are logarithmic and reach below it
+    assert ax.get_xscale() == "log" and ax.get_xlim()[0] < spec.band[0] / np.pi
     choice = choose_alpha((0.2, 0.9))
     ax = plots.plot_alpha(choice).axes[0]
     assert _span(ax) == pytest.approx((0.2 / np.pi, 0.9 / np.pi))
+    assert ax.get_xscale() == "log" and ax.get_xlim()[0] < 0.2 / np.pi
     solid = [ln.get_label() for ln in ax.get_lines() if ln.get_linestyle() == "-"]
     assert solid == [f"α = {choice.alpha_star:g} ({max(choice.shares):.0%} in band)"]

@@ -389,5 +389,8 @@ def test_report_prints_to_at_most_six_a4_pages_before_the_appendix(lab_sweep, tm
     pdf = print_pdf(report_file(reports), tmp_path / "report.pdf")
     pages = pages_before_appendix(pdf)
     texts = page_texts(pdf)
-    assert 0 < pages <= PAGE_LIMIT < len(texts), (pages, len(texts))
-    assert "10. Grading template" in "".join(texts[:pages]) and "def get_average(" in "".join(texts[pages:])
+    # six pages plus the attached code (and the cautions) on one more: the long appendices stay in the HTML
+    assert 0 < pages <= PAGE_LIMIT and len(texts) == pages + 1, (pages, len(texts))
+    appendix = "".join(texts[pages:])
+    assert "10. Grading template" in "".join(texts[:pages]) and "def get_average(" in appendix
+    assert "B. Cautions" in appendix and "C. Every run" not in appendix and "Appendices C–E" in appendix

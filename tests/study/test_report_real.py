@@ -63,13 +63,14 @@ def test_real_report_calls_an_unexplained_records_independence_test_without_powe
 
 
 def test_real_report_prints_to_at_most_six_a4_pages_before_the_appendix(real_report, tmp_path):
-    from maglev.study.report.pdf import PAGE_LIMIT, chromium, pages_before_appendix, print_pdf
+    from maglev.study.report.pdf import PAGE_LIMIT, chromium, page_texts, pages_before_appendix, print_pdf
 
     if chromium() is None:
         pytest.skip("chromium not installed (apt-get install -y chromium): the report is not printed")
     _, page = real_report
     pdf = print_pdf(page, tmp_path / "real.pdf")
-    assert 0 < pages_before_appendix(pdf) <= PAGE_LIMIT
+    pages = pages_before_appendix(pdf)
+    assert 0 < pages <= PAGE_LIMIT and len(page_texts(pdf)) == pages + 1  # the attached code and cautions on one
 
 
 def test_real_sweeps_orders_decision_and_conclusion_follow_the_orders_rule(real_report):

@@ -71,6 +71,18 @@ def test_binary_vs_uniform_verdict_changes_with_the_numbers():
     assert any("uni_n is centred at 2.10 A, not at u* = 2.75 A" in s for s in cc.sentences)
 
 
+def test_binary_vs_uniform_compares_the_models_at_the_structures_final_order():
+    """With the orders decision settling at order 4, each record is represented by its order-4 model, although its
+    order-5 model scores higher on its own data; a record with no run at the final order keeps its best run."""
+    comp = comparison({d: OWN_CLASS[d][d] for d in DATASETS})
+    final = comp.assign(final_order=comp["orders"] == "[4]")
+    cc = v.class_comparison(final, common(OWN_CLASS), 2.75, 2.5)
+    assert cc.models == {"bin": "bj4 bin", "uni_w": "bj4 uni_w", "uni_n": "bj4 uni_n"}
+    assert cc.matrix.loc["uni_w", "bin"] == OWN_CLASS["uni_w"]["bin"] - 1.0  # the order-4 row of the common FITs
+    partial = comp.assign(final_order=(comp["orders"] == "[4]") & (comp["dataset"] != "bin"))
+    assert v.class_comparison(partial, common(OWN_CLASS)).models["bin"] == "bj5 bin"
+
+
 def facts(name: str, **kw) -> v.ModelFacts:
     base = dict(name=name, rank=1, val_fit=99.0, val_fit_sim=20.0, val_dataset="d[val]", explained=0.4, white=False,
                 whiteness_p=1e-9, independent=False, independence_p=1e-9, unit_poles=0, cancellations=0,
@@ -284,3 +296,81 @@ def test_the_input_section_says_a_record_leaves_the_region_only_when_its_numbers
     assert "the records rule's choice" not in forced
     assert "forced by the config, not chosen; each stays inside" in _input_section(inside, forced=True)
     assert v.records_head({"a": 0.3, "b": 0.0}, 0.02, None).endswith(": a leaves the working region.")
+
+
+def test_a_recommended_model_failing_its_residual_tests_is_said_to_and_passing_ones_are_not():
+    """The conclusion's models carry their residual tests: a failed test is stated with its p-value and what it
+    means for the model's use; a model passing both gets no caution (p-values against the lab's 1 % level)."""
+    table = pd.DataFrame([
+        {"rank": 1, "name": "bj bin", "structure": "bj", "order": 4, "val_fit": 98.6, "val_fit_naive": 81.8,
+         "val_fit_sim": 6.9, "val_dataset": "bin[val]", "whiteness_pvalue": 1e-13, "independence_pvalue": 0.2},
+        {"rank": 2, "name": "oe wide", "structure": "oe", "order": 4, "val_fit": 27.1, "val_fit_naive": 83.9,
+         "val_fit_sim": 27.1, "val_dataset": "wide[val]", "whiteness_pvalue": 0.0, "independence_pvalue": 0.003}])
+    c = v.conclusion(table)
+    assert (c.simulation, c.prediction) == ("oe wide", "bj bin")
+    cautions = [s for s in c.sentences if s.startswith("Caution: ")]
+    assert cautions == [
+        "Caution: oe wide fails the whiteness test (p = 0 < 0.01) and the independence test (p = 0.003 < 0.01): G "
+        "misses part of the dynamics; the disturbance is coloured, which a simulation (G alone) does not use.",
+        "Caution: bj bin fails the whiteness test (p = 1e-13 < 0.01): its predictions leave structure in the "
+        "residuals."]
+    # both pass at the 1 % level: no caution; one fails independence only: that one alone
+    passing = table.assign(whiteness_pvalue=[0.02, 0.5], independence_pvalue=[0.2, 0.01])
+    assert not [s for s in v.conclusion(passing).sentences if s.startswith("Caution: ")]
+    one = table.assign(whiteness_pvalue=[0.02, 0.5], independence_pvalue=[0.2, 0.009])
+    assert [s for s in v.conclusion(one).sentences if s.startswith("Caution: ")] == [
+        "Caution: oe wide fails the independence test (p = 0.009 < 0.01): G misses part of the dynamics."]
+
+
+def test_the_top_four_carry_their_residual_tests_and_how_many_fail_each():
+    from maglev.study.report.sections import residual_summary, residual_text
+
+    top = pd.DataFrame({"name": ["a", "b", "c", "d"], "whiteness_pvalue": [1e-13, 0.0, 0.2, 0.004],
+                        "independence_pvalue": [5.8e-6, 0.5, 0.01, 0.3]})
+    assert residual_text(top.iloc[0]) == "; whiteness fails (p = 1e-13); independence fails (p = 5.8e-06)"
+    assert "whiteness passes" in residual_text(top.iloc[2]) and "independence passes" in residual_text(top.iloc[2])
+    assert residual_summary(top) == ("Residual tests at the 1% level: 3 of the 4 fail the whiteness test and 1 of "
+                                     "the 4 fail the independence test: the FIT ranks the predictions, not whether a "
+                                     "model has caught the data's structure (§8).")
+    assert residual_summary(top.assign(independence_pvalue=0.0)).endswith("and all 4 fail the independence test: "
+                                                                          "the FIT ranks the predictions, not whether "
+                                                                          "a model has caught the data's structure (§8).")
+    assert residual_summary(top.assign(whiteness_pvalue=0.5, independence_pvalue=0.5)) == \
+        "All 4 pass the residual tests at the 1% level."
+    assert residual_text(pd.Series({"name": "x"})) == "" and residual_summary(top[["name"]]) == ""
+
+
+@pytest.mark.parametrize("alpha, forced, expected", [
+    (0.2511, False, "α = 0.25 = α*, the α whose spectrum puts most power in the output's band"),
+    (0.4969, False, "<b>α = 0.50, not α* = 0.25</b>; no binary record with α nearer α* passes the records rule"),
+    (0.4969, True, "<b>α = 0.50, not α* = 0.25</b>; the config forces this record"),
+])
+def test_the_binary_records_alpha_is_set_against_alpha_star_and_the_report_says_why_it_differs(alpha, forced,
+                                                                                               expected):
+    from maglev.study.report.sections import alpha_text, binary_alpha
+
+    records = SimpleNamespace(forced=forced)
+    assert alpha_text(alpha, 0.25, records).startswith(expected)
+    # the α measured by the alpha decision wins over the config's design value; a real record's config has none
+    decisions = {"alpha": SimpleNamespace(choice={"real_binary_signal_4": alpha})}
+    assert binary_alpha("real_binary_signal_4", {"alpha": None}, decisions) == alpha
+    assert binary_alpha("real_binary_signal_4", {"alpha": None}, {}) is None
+    assert binary_alpha("binary_a025", {"alpha": 0.25}, None) == 0.25
+
+
+def test_an_order_chosen_at_the_lower_edge_of_the_swept_orders_says_a_smaller_one_was_not_tried():
+    from maglev.study.report.sections import lower_edge_text
+
+    oc = {"grid": [4, 5]}
+    assert lower_edge_text(4, oc) == (" It is the smallest order swept: order 3 was not, so whether it would "
+                                      "simulate within 1 point as well is untested.")
+    assert lower_edge_text(5, oc) == "" and lower_edge_text(1, {"grid": [1, 2]}) == "" and lower_edge_text(4, None) == ""
+
+
+def test_the_slowest_mode_is_matched_to_a_physical_mode_only_within_a_factor_two():
+    physics = [(225.9, 0.07), (80.9, 0.12)]
+    near = v.pole_zero_text(facts("m", dominant=(72.3, 0.2)), physics)
+    assert "slowest mode ωn = 72.3 rad/s, ζ = 0.20 (nearest mode of the linearised physics: 80.9 rad/s, ζ = 0.12)" in near
+    far = v.pole_zero_text(facts("m", dominant=(3.2, 1.0)), physics)
+    assert ("slowest mode ωn = 3.2 rad/s, ζ = 1.00, not a mode of the linearised physics (the nearest, 80.9 rad/s, "
+            "ζ = 0.12, is more than a factor 2 away)") in far

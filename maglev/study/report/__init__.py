@@ -7,7 +7,8 @@ motivation of each one's order, the top four, binary vs uniform input for one st
 common validation data, best vs worst and why one is better (:mod:`.verdicts`), a conclusion,
 and the grading template filled in (:mod:`.template`); then, after the ``Appendices``
 heading, the attached code, the cautions, every run and further figures.  Its print
-stylesheet fits the main report on six A4 pages (:mod:`.pdf` prints it with Chromium).
+stylesheet fits the main report on six A4 pages and prints only the attached code and the cautions after it
+(:mod:`.pdf` prints it with Chromium).
 Written to ``reports/<sweep>-<id>.html`` (default; ``<id>``: the first 8 characters of the
 sweep's ``sweep_id``, so two sweeps of one name never overwrite each other's report, and a
 relaunch of the same sweep updates its own) and logged under the same name to the sweep's
@@ -37,11 +38,11 @@ padding:2px 6px;text-align:right} table.t th{background:#f2f2f2} figure{margin:.
 img{max-width:100%} .row{display:flex;flex-wrap:wrap;gap:1em} figure.half{flex:1 1 45%;margin:.3em 0}
 figure.side{float:right;width:45%;margin:0 0 .5em 1em} .clear{clear:both}
 figcaption{font-size:.85em;color:#444} .missing{color:#a00} nav a{margin-right:1em} .meta{color:#555;font-size:.9em}
-pre{font-size:.8em;background:#f7f7f7;padding:.4em;overflow-x:auto} #appendix{margin-top:3em}
+pre{font-size:.8em;background:#f7f7f7;padding:.4em;overflow-x:auto} #appendix{margin-top:3em} .print{display:none}
 @page{size:A4;margin:11mm 11mm 12mm 11mm}
 @media print{
  body{font-size:8.2pt;line-height:1.22;max-width:none;margin:0;padding:0}
- nav,.screen{display:none} h1{font-size:12pt;margin:0 0 .2em} .meta{font-size:7pt}
+ nav,.screen,#all-runs,#extra-figures,#decisions-evidence{display:none} .print{display:block} h1{font-size:12pt;margin:0 0 .2em} .meta{font-size:7pt}
  h2{font-size:10.2pt;margin:.7em 0 .25em;break-after:avoid} h3{font-size:8.9pt;break-after:avoid}
  p{margin:.25em 0} ul{margin:.2em 0;padding-left:1.3em} li{margin:.05em 0}
  table.t{font-size:7pt;margin:.25em 0;break-inside:avoid} table.t td,table.t th{padding:0 3px}
@@ -51,6 +52,10 @@ pre{font-size:.8em;background:#f7f7f7;padding:.4em;overflow-x:auto} #appendix{ma
  #appendix{break-before:page;margin-top:0} pre{font-size:6.6pt;white-space:pre-wrap}
 }
 """
+# the lab allows six pages plus the attached code: the printed report stops after Appendix B and says where the rest is
+PRINT_NOTE = ("<p class='print'>Appendices C–E (every run, further figures, the evidence of the lab decisions) are in "
+              "the HTML version of this report and on its MLflow ranking run; they are not printed, so that the "
+              "report keeps to the lab's six pages plus the attached code.</p>")
 SECTIONS = [("preparation", "Preparation"), ("working-region", "Working region"), ("inputs", "Inputs"),
             ("data", "Data"), ("structures", "Structures and orders"), ("top4", "Top four"),
             ("binary-vs-uniform", "Binary vs uniform"), ("best-vs-worst", "Best vs worst"),
@@ -140,7 +145,7 @@ def build(ranking: Ranking, ranking_run: str) -> str:
                       + ("beside the best linear approximation of each simulated dataset's input class (shaded: its "
                          "99 % band)." if blas else "(this sweep has no simulated dataset, so no simulator BLA).")))
     appendix = ["<h1 id='appendix'>Appendices</h1>", sec.attached_code(), sec.cautions(ranking.cautions),
-                sec.all_runs(ranking, models), sec.extra_figures(extra), sec.decisions_evidence(decisions)]
+                PRINT_NOTE, sec.all_runs(ranking, models), sec.extra_figures(extra), sec.decisions_evidence(decisions)]
     body = "".join(main)
     body += grading_template(body + "".join(appendix))
     page = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>maglev report: "

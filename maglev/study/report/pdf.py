@@ -1,8 +1,9 @@
 """The report as an A4 PDF: headless Chromium's print-to-PDF of the HTML page, with its print stylesheet.
 
 The lab allows six pages plus the attached code; the page's print stylesheet puts the
-appendix (attached code, cautions, every run, further figures) on a new page after the
-``APPENDIX_MARKER`` heading, so :func:`pages_before_appendix` can count the main report.
+appendix on a new page after the ``APPENDIX_MARKER`` heading, so :func:`pages_before_appendix`
+can count the main report, and prints of it only the attached code and the cautions (every run,
+the further figures and the decisions' evidence stay in the HTML).
 """
 
 from __future__ import annotations

@@ -15,12 +15,13 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-from maglev.lab.records import EST_MIN_S, INPUT_OUTSIDE_MAX, VAL_MIN_S, share_outside
+from maglev.lab.records import ALPHA_TOLERANCE, EST_MIN_S, INPUT_OUTSIDE_MAX, VAL_MIN_S, share_outside
 from maglev.model import CANCEL_TOL, PolyModel
 from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.ranking import validation_note
+from maglev.validation import TEST_LEVEL, format_p
 
 
 # ---------------------------------------------------------------------------- HTML helpers
@@ -161,13 +162,12 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decis
         lo, hi = float(np.min(u)), float(np.max(u))
         outside[name] = share_outside(u, (u_lo, u_hi)) if u_hi > u_lo else math.nan
         cover = (hi - lo) / (u_hi - u_lo) if u_hi > u_lo else math.nan
-        alpha = ds.get("alpha") if ds["input_class"] == "binary" else None
+        alpha = binary_alpha(name, ds, decisions) if ds["input_class"] == "binary" else None
         text = (f"<b>{esc(name)}</b> ({esc(ds['input_class'])}): [{num(lo)}, {num(hi)}] A, "
                 f"{num(100 * cover, 0)} % of the working region's width, mean {num(prep.u0)} A "
                 f"({num(round(prep.u0 - u_star, 2) + 0.0, 2)} A from u*); " + region_text(outside[name], INPUT_OUTSIDE_MAX))
         if alpha is not None:
-            text += (f"; α = {num(alpha)}" + (" = α*, the α whose spectrum puts most power in the output's band"
-                                              if math.isclose(alpha, alpha_star) else f" (α* = {num(alpha_star)})"))
+            text += "; " + alpha_text(alpha, alpha_star, (decisions or {}).get("records"))
         why.append(text + ".")
     classes = [configs[n]["dataset"]["input_class"] for n in datasets]
     records = (decisions or {}).get("records")
@@ -190,6 +190,28 @@ def input_signals(datasets: dict, configs: dict, lab: dict, lab_png: dict, decis
                   "(the lab's Fig. 5), with the output's band shaded.", "half") + "</div>")
     return section("inputs", "3. Input signals", para(head), bullets(why), spectrum,
                    decision(decisions, "records"), decision(decisions, "alpha"), figs)
+
+
+def binary_alpha(name: str, ds: dict, decisions: dict | None) -> float | None:
+    """A binary record's α: the one the alpha decision measured from its switching rate, else its config's design
+    value (a real record's config has none), else None."""
+    measured = (decisions or {}).get("alpha")
+    if measured is not None and isinstance(measured.choice, dict) and name in measured.choice:
+        return float(measured.choice[name])
+    return None if ds.get("alpha") is None else float(ds["alpha"])
+
+
+def alpha_text(alpha: float, alpha_star: float, records=None) -> str:
+    """A binary record's α against α* (within the alpha decision's tolerance), and why it is not α* when it is not:
+    the records rule's choice (no binary record nearer α* passes it) or the config's (``records``: the records
+    decision, None when the sweep logged none)."""
+    if not math.isfinite(alpha_star):
+        return f"α = {num(alpha)}"
+    if abs(alpha - alpha_star) <= ALPHA_TOLERANCE:
+        return f"α = {num(alpha)} = α*, the α whose spectrum puts most power in the output's band"
+    why = ("" if records is None else "; the config forces this record" if records.forced else
+           "; no binary record with α nearer α* passes the records rule (its reasons below)")
+    return f"<b>α = {num(alpha)}, not α* = {num(alpha_star)}</b>{why}"
 
 
 def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict, decisions: dict | None = None) -> str:
@@ -271,6 +293,15 @@ def order_sentence(oc: dict) -> str:
             f"{among} is <b>{chosen}</b>{where}")
 
 
+def lower_edge_text(chosen: int, oc: dict | None) -> str:
+    """A sentence when the chosen order is the smallest swept one above 1: the rule takes the smallest order within
+    the margin of the best, so a smaller order, never swept, might have done as well; "" otherwise."""
+    if oc is None or int(chosen) != oc["grid"][0] or int(chosen) <= 1:
+        return ""
+    return (f" It is the smallest order swept: order {int(chosen) - 1} was not, so whether it would simulate within "
+            f"{ORDER_MARGIN:g} point as well is untested.")
+
+
 def order_summary(table_: pd.DataFrame, models: dict, tol: float = CANCEL_TOL) -> pd.DataFrame:
     """One row per structure: its mean simulation FIT (%) over the datasets at each swept order (the number an order
     is chosen by, one column per order: a grid of any size stays a few rows) and its near cancellations in all."""
@@ -310,6 +341,7 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
         chosen = (decisions or {}).get("orders")
         if chosen is not None and isinstance(chosen.choice, dict) and st in chosen.choice:
             text += f"Order <b>{esc(chosen.choice[st])}</b>, by the orders decision below."
+            text += esc(lower_edge_text(chosen.choice[st], oc))
         elif oc is None:
             text += f"One order swept ({esc(', '.join(sorted(set(runs['orders']))))}): no choice to motivate."
         else:
@@ -342,8 +374,10 @@ def top_four(ranking) -> str:
     status = statuses(ranking.orders)
     lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])} "
              f"(y(t−1): {num(r['val_fit_naive'])} %, simulation: {num(r['val_fit_sim'])} %), "
-             f"{r['n_params']} parameters; " + esc(order_place(r, status)) for _, r in ranking.top.iterrows()]
-    return section("top4", "6. Top four models", text, bullets(lines), para(esc(final_orders_text(ranking))),
+             f"{r['n_params']} parameters; " + esc(order_place(r, status)) + esc(residual_text(r))
+             for _, r in ranking.top.iterrows()]
+    return section("top4", "6. Top four models", text, bullets(lines), para(esc(residual_summary(ranking.top))),
+                   para(esc(final_orders_text(ranking))),
                    para(f"<b>Note:</b> the top four were {esc(note)}.") if note else "")
 
 
@@ -355,6 +389,26 @@ def order_place(row: pd.Series, status: dict[tuple[str, int], str]) -> str:
         return f"order {o}, {st.upper()}'s final order" if (st, o) in status else f"order {o}, the one swept"
     why = status.get((st, o))
     return f"order {o}, not {st.upper()}'s final order" + (f": {why}" if why else "")
+
+
+def residual_text(row: pd.Series) -> str:
+    """A ranked run's residual tests in a clause (p-values against the lab's 1 % level); "" without them."""
+    tests = [(t, float(row[c])) for t, c in (("whiteness", "whiteness_pvalue"), ("independence", "independence_pvalue"))
+             if c in row.index and math.isfinite(float(row[c]))]
+    return "".join(f"; {t} {'passes' if p >= TEST_LEVEL else 'fails'} (p = {format_p(p)})" for t, p in tests)
+
+
+def residual_summary(top: pd.DataFrame) -> str:
+    """How many of the top four fail each residual test, and what a failure means for their ranking."""
+    parts = [(t, int((top[c] < TEST_LEVEL).sum())) for t, c in (("whiteness", "whiteness_pvalue"),
+                                                              ("independence", "independence_pvalue")) if c in top]
+    if not parts:
+        return ""
+    failing = [f"{'all' if k == len(top) else f'{k} of the'} {len(top)} fail the {t} test" for t, k in parts if k]
+    if not failing:
+        return f"All {len(top)} pass the residual tests at the {TEST_LEVEL:.0%} level."
+    return (f"Residual tests at the {TEST_LEVEL:.0%} level: " + " and ".join(failing) + ": the FIT ranks the "
+            "predictions, not whether a model has caught the data's structure (§8).")
 
 
 def final_orders_text(ranking) -> str:
@@ -378,9 +432,9 @@ def binary_vs_uniform(ranking, lab: dict) -> str:
         return section("binary-vs-uniform", title, para(esc("; ".join(ranking.notes))))
     comp, st = ranking.comparison, ranking.structure
     parts = [para(f"Structure <b>{esc(st.upper())}</b> (the best-fitting structure with models of both input "
-                  "classes). Each record is represented by its model of the highest FIT on its own validation data, "
-                  "and every model is evaluated on every record's validation data (rows: estimated on, columns: "
-                  "validated on; one-step FIT %):")]
+                  "classes). Each record is represented by its model at the structure's final order (§5) with the "
+                  "highest FIT on its own validation data, and every model is evaluated on every record's validation "
+                  "data (rows: estimated on, columns: validated on; one-step FIT %):")]
     if ranking.common is None:
         parts.append(para(esc("; ".join(ranking.notes) or "no common validation data")))
         return section("binary-vs-uniform", title, *parts)
@@ -436,8 +490,8 @@ def best_vs_worst(ranking, models_all: dict, lab: dict, physics_modes: list | No
             f"{esc(w['val_dataset'])}).")
     tally = bw.tally
     better = fb if bw.better == "best" else fw
-    verdict = (f"<b>Why one is better:</b> of the checks below, {tally['best']} favour the best and {tally['worst']} "
-               f"the worst by one-step FIT, so <b>{esc(better.name)}</b> is the better model of the plant"
+    verdict = (f"<b>Why one is better:</b> of the checks below, {tally['best']} favour the best model by one-step "
+               f"FIT and {tally['worst']} the worst, so <b>{esc(better.name)}</b> is the better model of the plant"
                + (" — the one-step ranking's order stands." if bw.better == "best" else
                   " — the reverse of the one-step ranking: the best's one-step FIT comes from its noise model's use "
                   "of past outputs, not from G."))

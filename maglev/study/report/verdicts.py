@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from maglev.validation import format_p
+from maglev.validation import TEST_LEVEL, format_p
 
 EXPLAINED_MIN = 0.05  # share of the output variance the input must explain for the independence test to have power
 UNIT_CIRCLE = 0.995  # |pole| from which a pole counts as on the unit circle (an integrator or a drift, not a mode)
@@ -28,6 +28,7 @@ GAIN_TOL = 0.20  # a static gain within this relative distance of the staircase 
 SIM_MARGIN = 1.0  # simulation FIT points that make one model's G better than another's
 NAIVE_MARGIN = 1.0  # FIT points a model must gain over y(t−1) to add anything one step ahead
 WORKING_POINT_SHARE = 0.10  # mean input this far from u* (share of the working region's width) is another point
+MODE_RATIO = 2.0  # a model's mode within this factor of a physical mode's natural frequency is that mode
 
 
 def explained_share(fit_sim: float) -> float:
@@ -80,7 +81,7 @@ def records_head(outside: dict[str, float], limit: float, forced: bool | None) -
 # ---------------------------------------------------------------------------- binary vs uniform
 @dataclass
 class ClassComparison:
-    """One structure's models, one per estimation dataset (its best order), on every validation set."""
+    """One structure's models, one per estimation dataset (its best at the final order), on every validation set."""
 
     matrix: pd.DataFrame  # rows: estimation dataset, columns: validation dataset, one-step FIT %
     models: dict[str, str]  # estimation dataset -> the model's name
@@ -96,12 +97,16 @@ def class_comparison(comp: pd.DataFrame, common: pd.DataFrame, u_star: float | N
     """The lab's "which one is higher? discuss" (§3.7) for one structure.
 
     ``comp``: the structure's ranked runs (``name, dataset, input_class, val_fit, val_fit_naive``, optionally
-    ``u0``); ``common``: FIT % of each run (index: name) on each dataset's validation data (columns
-    ``<dataset>[val]``).  Each dataset is represented by its structure's model with the highest FIT on its own
-    validation data.  The verdict compares the best binary-input and the best uniform-input model on each common
+    ``u0`` and ``final_order``); ``common``: FIT % of each run (index: name) on each dataset's validation data
+    (columns ``<dataset>[val]``).  Each dataset is represented by its structure's model with the highest FIT on its
+    own validation data among the runs at the structure's final order (the orders decision, where ``final_order``
+    marks any of the dataset's runs; else among all its runs), so the comparison is of the models §5 settles on.  The verdict compares the best binary-input and the best uniform-input model on each common
     validation set; the discussion says whether each class wins on its own class, which model transfers best
     to the other records, how far each FIT is above y(t−1)'s on the same data, and which records sit at another
     operating point than u*."""
+    if "final_order" in comp:
+        final = comp["final_order"].astype(bool)
+        comp = comp[final | ~comp["dataset"].isin(comp.loc[final, "dataset"])]
     own = comp.loc[comp.groupby("dataset")["val_fit"].idxmax()].set_index("dataset")
     classes = {str(d): str(c) for d, c in own["input_class"].items()}
     datasets = sorted(own.index, key=lambda d: (classes[d], d))
@@ -161,10 +166,13 @@ def class_comparison(comp: pd.DataFrame, common: pd.DataFrame, u_star: float | N
         far = {d: float(own.loc[d, "u0"]) for d in datasets
                if abs(float(own.loc[d, "u0"]) - u_star) > WORKING_POINT_SHARE * width}
         if far:
+            one = len(far) == 1
             out.append("Operating points: " + ", ".join(f"{d} is centred at {u:.2f} A" for d, u in far.items())
                        + f", not at u* = {u_star:.2f} A (more than {WORKING_POINT_SHARE:.0%} of the working region's "
-                       "width away): its model linearises the plant at another point, which the comparison mixes "
-                       "with the input class.")
+                       + ("width away): its model linearises the plant at another point, which the comparison mixes "
+                          "with the input class." if one else
+                          "width away): their models linearise the plant at other points than u*, which the "
+                          "comparison mixes with the input class."))
         else:
             out.append(f"Every record is centred within {WORKING_POINT_SHARE:.0%} of the working region's width of "
                        f"u* = {u_star:.2f} A, so the comparison is one of input classes, not of operating points.")
@@ -314,7 +322,10 @@ def pole_zero_text(f: ModelFacts, physics: list[tuple[float, float]] | None = No
         text += f"; slowest mode ωn = {wn:.1f} rad/s, ζ = {zeta:.2f}"
         if physics:
             pw, pz = min(physics, key=lambda m: abs(m[0] - wn))
-            text += f" (nearest mode of the linearised physics: {pw:.1f} rad/s, ζ = {pz:.2f})"
+            near = pw / MODE_RATIO <= wn <= pw * MODE_RATIO
+            text += (f" (nearest mode of the linearised physics: {pw:.1f} rad/s, ζ = {pz:.2f})" if near else
+                     f", not a mode of the linearised physics (the nearest, {pw:.1f} rad/s, ζ = {pz:.2f}, is more "
+                     f"than a factor {MODE_RATIO:g} away)")
         if bla_peak:
             text += f"; the BLA peaks at {bla_peak:.1f} rad/s"
     return text + "."
@@ -366,12 +377,31 @@ def _not_final(row: pd.Series, orders) -> str:
             + " — by the orders rule (§5)")
 
 
+def residual_caveat(row: pd.Series, purpose: str) -> str:
+    """The residual tests of a recommended model (``purpose``: "simulation" or "prediction") and what a failed one
+    means for that use; "" when the table has no test p-values or the model passes both."""
+    tests = [(t, float(row[c])) for t, c in (("whiteness", "whiteness_pvalue"), ("independence", "independence_pvalue"))
+             if c in row.index and math.isfinite(float(row[c]))]
+    failed = [(t, p) for t, p in tests if p < TEST_LEVEL]
+    if not failed:
+        return ""
+    names = " and ".join(f"the {t} test (p = {format_p(p)} < {TEST_LEVEL})" for t, p in failed)
+    meaning = []
+    if any(t == "independence" for t, _ in failed):
+        meaning.append("G misses part of the dynamics")
+    if any(t == "whiteness" for t, _ in failed):
+        meaning.append("its predictions leave structure in the residuals" if purpose == "prediction" else
+                       "the disturbance is coloured, which a simulation (G alone) does not use")
+    return f"Caution: {row['name']} fails {names}: " + "; ".join(meaning) + "."
+
+
 def conclusion(table: pd.DataFrame, slope: float | None = None, orders=None) -> Conclusion:
     """The model to use for simulation (the highest simulation FIT: G alone reproduces the output) and for one-step
     prediction (the highest one-step FIT, if it beats y(t−1) by NAIVE_MARGIN points; else y(t−1) itself), each
     chosen among the runs at their structure's final order (``table["final_order"]``, from the orders decision
-    ``orders``: :class:`maglev.lab.decision.Decision` or None), and why; a run of another order that scores higher
-    is named with its number and the reason the orders rule gives against its order."""
+    ``orders``: :class:`maglev.lab.decision.Decision` or None), and why; a recommended model that fails a residual
+    test is said to, with what that means for its use (:func:`residual_caveat`); a run of another order that scores
+    higher is named with its number and the reason the orders rule gives against its order."""
     if "final_order" not in table:
         table = table.assign(final_order=True)
     rule, those = _orders_rule(table, orders)
@@ -417,6 +447,10 @@ def conclusion(table: pd.DataFrame, slope: float | None = None, orders=None) -> 
         lines.append(f"For one-step prediction no model is needed: {top['name']} (#{int(top['rank'])}), the best of "
                      f"{those} models one step ahead, scores {top['val_fit']:.2f} % and y(t−1) alone "
                      f"{top['val_fit_naive']:.2f} % on the same data ({gain:+.2f} points, less than {NAIVE_MARGIN:g}).")
+    caveats = [residual_caveat(sim, "prediction" if prediction == sim["name"] else "simulation")]
+    if prediction is not None and prediction != sim["name"]:
+        caveats.append(residual_caveat(top, "prediction"))
+    lines += [c for c in caveats if c]
     first = table.iloc[0]
     if not first["final_order"]:
         lines.append(f"The #1 by one-step FIT, {first['name']} ({first['val_fit']:.2f} %, "
