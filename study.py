@@ -2,7 +2,7 @@
 
     python study.py                                        # one run: conf/config.yaml defaults
     python study.py dataset=binary_a025 structure=bj structure.order=3
-    python study.py -m +sweep=lab                     # the lab sweep (33 runs)
+    python study.py -m +sweep=lab                     # the lab sweep (39 runs)
     python study.py -m +sweep=lab hydra/launcher=parallel
 
 The work is in ``maglev.study`` (see docs/tracking.md for what every run logs).

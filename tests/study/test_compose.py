@@ -10,7 +10,7 @@ CONF = Path(__file__).resolve().parents[2] / "conf"
 
 
 def test_every_job_of_the_lab_sweep_gets_hydras_own_config_from_one_composition_per_choice_of_groups():
-    """The default sweep's jobs (3 datasets × 4 structures × their orders, 33): the memoised loader gives each
+    """The default sweep's jobs (3 datasets × 4 structures × their orders, 39): the memoised loader gives each
     job exactly the config Hydra composes for it (values, ``hydra.overrides.task``, the job's folder name),
     twice (the sweeper's validation, then the launcher), each time a copy of its own, from 12 compositions."""
     from hydra import initialize_config_dir
@@ -28,7 +28,7 @@ def test_every_job_of_the_lab_sweep_gets_hydras_own_config_from_one_composition_
         jobs = sweep_jobs(master)
         sweeper = master.hydra.sweeper  # a structure's own orders (sweeper.orders), else structure.order's
         assert len(jobs) == 3 * sum(len(str(sweeper.orders.get(s, sweeper.params["structure.order"])).split(","))
-                                    for s in ("arx", "armax", "oe", "bj")) == 33
+                                    for s in ("arx", "armax", "oe", "bj")) == 39
         own = {tuple(job): OmegaConf.to_yaml(type(loader).load_sweep_config(loader, master, job)) for job in jobs}
         assert len(set(own.values())) == len(jobs)
         composed = []

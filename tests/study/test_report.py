@@ -213,7 +213,7 @@ def test_every_simulated_run_logs_the_bla_distance_the_naive_baseline_and_the_si
     by_dataset = model_runs(store)
     assert sorted(by_dataset) == sorted(DATASETS)
     for ds, runs in by_dataset.items():
-        assert len(runs) == 11, ds  # ARX at orders 4 to 7, ARMAX at 4 to 6, OE and BJ at 4 and 5
+        assert len(runs) == 13, ds  # ARX at orders 4 to 7, ARMAX at 4 to 6, OE and BJ at 3 to 5
         for r in runs:
             m = r.data.metrics
             for key in ("g_bla_err", "g_bla_err_stationary", "g_bla_err_unweighted", "bla_fit_ceiling", "val_fit_naive", "val_fit_sim"):
@@ -282,7 +282,7 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     assert len(keys) == int(ranking.data.metrics["n_cautions"])
     chosen = final_orders(store)
     assert {st: grid for st, (_, grid) in chosen.items()} == {
-        "arx": [4, 5, 6, 7], "armax": [4, 5, 6], "oe": [4, 5], "bj": [4, 5]}
+        "arx": [4, 5, 6, 7], "armax": [4, 5, 6], "oe": [3, 4, 5], "bj": [3, 4, 5]}
     final = {st: o for st, (o, _) in chosen.items()}
     at_edge = {st for st, (o, grid) in chosen.items() if o == grid[-1]}
     assert {k.removeprefix("order_at_edge_") for k in keys if k.startswith("order_at_edge")} == at_edge

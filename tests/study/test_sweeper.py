@@ -114,7 +114,7 @@ def test_a_grid_sweep_runs_only_the_orders_it_adds_and_resumes(migrated_store):
 
 
 @pytest.mark.parametrize("name, grids", [
-    ("lab", {"arx": [4, 5, 6, 7], "armax": [4, 5, 6], "oe": [4, 5], "bj": [4, 5]}),
+    ("lab", {"arx": [4, 5, 6, 7], "armax": [4, 5, 6], "oe": [3, 4, 5], "bj": [3, 4, 5]}),
     ("lab_real", {"arx": [2, 3, 4, 5, 6], "armax": [2, 3, 4, 5, 6, 7], "oe": [2, 3, 4, 5, 6, 7], "bj": [2, 3, 4, 5, 6]}),
 ])
 def test_the_lab_sweeps_declare_each_structures_orders_and_launch_them(name, grids):
