@@ -19,12 +19,14 @@ from concurrent.futures.process import BrokenProcessPool
 
 log = logging.getLogger("maglev.study")
 
-# One renderer: a run's five figures take ≈ 0.7 s of CPU, less than the time from one run to the next, so one
-# process keeps up on the second core; a second one cost ≈ 3-5 s more CPU per sweep (its imports) for no
-# shorter sweep (36-48 s both ways at load 1.5-2.5, bench/study_overhead.py --sweep)
+# One renderer: a run's five figures take ≈ 0.4 s of CPU (drawn on the figures of the run before), less than
+# the time from one run to the next, so one process keeps up on the second core; a second one cost ≈ 3-5 s
+# more CPU per sweep (its imports) for no shorter sweep (36-48 s both ways at load 1.5-2.5,
+# bench/study_overhead.py --sweep)
 WORKERS = 1
 _pool: ProcessPoolExecutor | None = None
 _pending: dict[str, tuple[str, Future, object]] = {}  # run id -> (tracking URI, its render, figure inputs)
+_figures: dict = {}  # this process's run figures, drawn again for every run (maglev.study.figures.run_figures)
 
 
 def draw_and_finish(uri: str, run_id: str, inputs) -> None:
@@ -40,7 +42,7 @@ def draw_and_finish(uri: str, run_id: str, inputs) -> None:
 
     client = MlflowClient(tracking_uri=uri)
     try:
-        figures = run_figures(inputs)
+        figures = run_figures(inputs, reuse=_figures)
         tracking.log_files(client, run_id, {f"figures/{name}": png(fig, RUN_DPI) for name, fig in figures.items()})
     except Exception as exc:  # noqa: BLE001 — a plotting bug must not lose a run
         tracking.log_batch(client, run_id, tags={"figures_error": f"{type(exc).__name__}: {exc}"[:4000]})
