@@ -99,3 +99,4 @@ def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_f
     assert client.get_run(parent).data.tags["lab_error"] == "KeyError: 'lab'"
     assert lines == ["lab steps failed: KeyError: 'lab'"]
     render.abandon()
+
