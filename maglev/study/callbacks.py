@@ -314,9 +314,13 @@ class SweepCallback(Callback):
         log.info("sweep %r: parent run %s (%s) in %s", name, self.parent,
                  "new" if self.fresh else "resumed", credentials.public(task["tracking"]["uri"]))
         if task["lab"]["enabled"] and (self.fresh or found[0].data.tags.get("lab_logged") != "true"):
+            # queued on the renderer when this sweep started one: made there while the runs estimate, and
+            # waited for before the ranking (render.drain); else made here
+            queued = render.submit_lab(task["tracking"]["uri"], self.parent, task, jobs)
             log.info("sweep %r: the lab steps (working region, rise time and Ts, output spectrum, alpha*) on its "
-                     "parent run", name)
-            self._log_lab(task, jobs)
+                     "parent run%s", name, ", made in the background while the runs go on" if queued else "")
+            if not queued:
+                self._log_lab(task, jobs)
         os.environ[progress.START_ENV] = str(time.time())  # the runs start: their ETA counts from here
 
     def _log_environment(self) -> None:
@@ -328,21 +332,9 @@ class SweepCallback(Callback):
             log.warning("environment not recorded: %s: %s", type(exc).__name__, exc)
 
     def _log_lab(self, task: dict, jobs: list[dict]) -> None:
-        from maglev.study.lab import lab_steps
-
-        try:
-            metrics, figures, summary = lab_steps(task, jobs)
-        except Exception as exc:  # the lab steps are informative; the sweep goes on
-            log.warning("lab steps failed: %s: %s", type(exc).__name__, exc)
-            tracking.log_batch(self.client, self.parent, tags={"lab_error": f"{type(exc).__name__}: {exc}"})
-            return
-        from maglev.study.figures import png
-
-        files = {f"lab/{k}": png(fig) for k, fig in figures.items()}
-        files["lab/decisions.json"] = summary.pop("decisions")  # schema: maglev.lab.decision
-        files["lab/lab.json"] = summary
-        tracking.log_files(self.client, self.parent, files)
-        tracking.log_batch(self.client, self.parent, metrics=metrics, tags={"lab_logged": "true"})
+        warning = render.log_lab(self.client, self.parent, task, jobs)
+        if warning:
+            log.warning("%s", warning)
 
     # ------------------------------------------------------------------ end
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:

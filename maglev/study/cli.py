@@ -51,7 +51,7 @@ def _rank(a: argparse.Namespace) -> int:
     run_id = None if a.force else previous_ranking_run(ranking)
     reused = run_id is not None
     if not reused:
-        ranking = compute(sweep, a.structure)
+        ranking = compute(sweep, a.structure, ranked=ranking)
         run_id = log_ranking(ranking)
     print(top_text(ranking))
     for note in ranking.notes:

@@ -197,9 +197,13 @@ def run(cfg: DictConfig) -> float | None:
         raise RunRefused(f"maglev: {exc}") from None
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
 
+    artifact_uris: dict[str, str] = {}  # the created run's: its uploads need not read the run back
+
     def create() -> str:
         tags = run_tags(plain, chash, ctx, parent)
-        return client.create_run(exp_id, run_name=run_label(plain), tags=tags).info.run_id
+        info = client.create_run(exp_id, run_name=run_label(plain), tags=tags).info
+        artifact_uris[info.run_id] = info.artifact_uri
+        return info.run_id
 
     config_yaml = credentials.redact(OmegaConf.to_yaml(OmegaConf.create(plain)))
     run_id, holder = None, None
@@ -229,7 +233,7 @@ def run(cfg: DictConfig) -> float | None:
             hydra_dir = Path(ctx["output_dir"]) / ".hydra"
             for f in sorted(hydra_dir.glob("*.yaml")):
                 files[f"config/hydra/{f.name}"] = credentials.redact(f.read_text())
-        tracking.log_files(client, run_id, files)
+        tracking.log_files(client, run_id, files, artifact_uris.get(run_id))
         tracking.log_batch(client, run_id, metrics={**out.metrics, **tracking.key_metrics(out.metrics)},
                            tags={tracking.NOTE: model_description(plain, out.metrics)})  # one transaction
         log_data_inputs(client, run_id, plain, out.prepared)

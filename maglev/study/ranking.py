@@ -174,25 +174,31 @@ def run_resid(sweep: Sweep, row: pd.Series, model):
     return resid(prep.val, model, lags=int(cfg["study"]["resid_lags"]))
 
 
-def compute(sweep: Sweep, structure: str | None = None, common: bool = True, draw: bool = True) -> Ranking:
+def compute(sweep: Sweep, structure: str | None = None, common: bool = True, draw: bool = True,
+            ranked: Ranking | None = None) -> Ranking:
     """Rank the sweep, load best/worst (and the compared runs) and draw the ranking's figures; with
     ``draw=False`` only the table, the comparison's choice and the cautions (enough for :func:`top_text`
-    and :func:`previous_ranking_run`)."""
+    and :func:`previous_ranking_run`).  ``ranked``: that ``draw=False`` ranking of this sweep and
+    ``structure``, made already (the end of a sweep asks it first): its table, comparison and cautions are
+    taken as they are."""
     from maglev.study.decisions import orders_of_table
     from maglev.study.figures import best_worst_figures, comparison_figure, png
 
-    table = rank_table(sweep.runs)
-    orders = orders_of_table(table)
-    table = mark_final_orders(table, orders)
-    chosen = choose_structure(table, structure)
-    notes = []
-    if chosen is None:
-        notes.append("no structure has both binary- and uniform-input runs: no binary vs uniform comparison")
-    comp = comparison_table(table, chosen) if chosen else None
+    if ranked is None:
+        table = rank_table(sweep.runs)
+        orders = orders_of_table(table)
+        table = mark_final_orders(table, orders)
+        chosen = choose_structure(table, structure)
+        notes = []
+        if chosen is None:
+            notes.append("no structure has both binary- and uniform-input runs: no binary vs uniform comparison")
+        comp = comparison_table(table, chosen) if chosen else None
+        ranked = Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=None, models={},
+                         orders=orders, configs={}, resids={}, notes=notes,
+                         cautions=sweep_cautions(sweep, table, comp))
     if not draw:
-        return Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=None, models={},
-                       orders=orders, configs={}, resids={}, notes=notes,
-                       cautions=sweep_cautions(sweep, table, comp))
+        return ranked
+    table, chosen, comp, notes = ranked.table, ranked.structure, ranked.comparison, list(ranked.notes)
     wanted = [table.iloc[0], table.iloc[-1]] + ([r for _, r in comp.iterrows()] if comp is not None else [])
     models = {r["run_id"]: load_model(sweep.client, r["run_id"]) for r in wanted}
     best, worst = table.iloc[0], table.iloc[-1]
@@ -205,8 +211,8 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
     except (SweepError, OSError, ValueError) as exc:  # e.g. a record no longer where it was
         notes.append(f"datasets not rebuilt (no FIT on common validation data): {exc}")
     ranking = Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=cross,
-                      models=models, orders=orders, configs=configs, resids=resids, notes=notes,
-                      cautions=sweep_cautions(sweep, table, comp))
+                      models=models, orders=ranked.orders, configs=configs, resids=resids, notes=notes,
+                      cautions=ranked.cautions)
     named = {k: replace(models[r["run_id"]], name=f"{k}: {r['name']}") for k, r in (("best", best), ("worst", worst))}
     figs = best_worst_figures(named["best"], named["worst"], resids[best["run_id"]], resids[worst["run_id"]],
                               best["val_fit"], worst["val_fit"])

@@ -1,4 +1,4 @@
-"""Draw a sweep's run figures in a background process, so the next run estimates while this one's render.
+"""Draw a sweep's run figures, and make its lab steps, in a background process, so the runs estimate meanwhile.
 
 A run's five figures cost far more than its estimation (matplotlib's text layout and
 rasterising) and no number depends on them.  In a sweep on the basic launcher, a job
@@ -7,6 +7,10 @@ to the renderer (one process, started with the sweep) and returns; the renderer 
 uploads the PNGs and only then marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
 for it (:func:`drain`) before it counts the runs and the ranking reads them.  A single
 run, or a job in a joblib worker (already one of several processes), draws inline.
+
+The sweep's lab steps (:func:`log_lab`) go to the renderer too, first: no run needs them, only
+the ranking and the report, which read them after :func:`drain`; so the first runs estimate
+while they are made instead of after them.
 """
 
 from __future__ import annotations
@@ -19,12 +23,15 @@ from concurrent.futures.process import BrokenProcessPool
 
 log = logging.getLogger("maglev.study")
 
-# One renderer: a run's five figures take ≈ 0.7 s of CPU, less than the time from one run to the next, so one
-# process keeps up on the second core; a second one cost ≈ 3-5 s more CPU per sweep (its imports) for no
-# shorter sweep (36-48 s both ways at load 1.5-2.5, bench/study_overhead.py --sweep)
+# One renderer: a run's five figures take ≈ 0.4 s of CPU (drawn on the figures of the run before), less than
+# the time from one run to the next, so one process keeps up on the second core; a second one cost ≈ 3-5 s
+# more CPU per sweep (its imports) for no shorter sweep (36-48 s both ways at load 1.5-2.5,
+# bench/study_overhead.py --sweep)
 WORKERS = 1
 _pool: ProcessPoolExecutor | None = None
 _pending: dict[str, tuple[str, Future, object]] = {}  # run id -> (tracking URI, its render, figure inputs)
+_figures: dict = {}  # this process's run figures, drawn again for every run (maglev.study.figures.run_figures)
+_lab: tuple[Future, tuple] | None = None  # the sweep's lab steps queued on the renderer, and their arguments
 
 
 def draw_and_finish(uri: str, run_id: str, inputs) -> None:
@@ -40,11 +47,69 @@ def draw_and_finish(uri: str, run_id: str, inputs) -> None:
 
     client = MlflowClient(tracking_uri=uri)
     try:
-        figures = run_figures(inputs)
+        figures = run_figures(inputs, reuse=_figures)
         tracking.log_files(client, run_id, {f"figures/{name}": png(fig, RUN_DPI) for name, fig in figures.items()})
     except Exception as exc:  # noqa: BLE001 — a plotting bug must not lose a run
         tracking.log_batch(client, run_id, tags={"figures_error": f"{type(exc).__name__}: {exc}"[:4000]})
     client.set_terminated(run_id, "FINISHED")
+
+
+def log_lab(client, parent: str, task: dict, jobs: list[dict]) -> str | None:
+    """The sweep's lab steps (:func:`maglev.study.lab.lab_steps`) logged on its parent run: their figures,
+    ``lab/lab.json``, ``lab/decisions.json``, metrics and the tag ``lab_logged``.  They are informative and
+    the sweep goes on without them: returns None, or the warning to print when they failed (tagged
+    ``lab_error`` on the parent)."""
+    from maglev.study import tracking
+    from maglev.study.lab import lab_steps
+
+    try:
+        metrics, figures, summary = lab_steps(task, jobs)
+    except Exception as exc:  # noqa: BLE001
+        tracking.log_batch(client, parent, tags={"lab_error": f"{type(exc).__name__}: {exc}"})
+        return f"lab steps failed: {type(exc).__name__}: {exc}"
+    from maglev.study.figures import png
+
+    files = {f"lab/{k}": png(fig) for k, fig in figures.items()}
+    files["lab/decisions.json"] = summary.pop("decisions")  # schema: maglev.lab.decision
+    files["lab/lab.json"] = summary
+    tracking.log_files(client, parent, files)
+    tracking.log_batch(client, parent, metrics=metrics, tags={"lab_logged": "true"})
+    return None
+
+
+def _log_lab_here(uri: str, parent: str, task: dict, jobs: list[dict]) -> str | None:
+    from mlflow import MlflowClient
+
+    return log_lab(MlflowClient(tracking_uri=uri), parent, task, jobs)
+
+
+def submit_lab(uri: str, parent: str, task: dict, jobs: list[dict]) -> bool:
+    """Queue the sweep's lab steps on the renderer, ahead of the runs' figures; False (nothing queued) when
+    no renderer was started: the caller makes them itself."""
+    global _lab
+    if _pool is None:
+        return False
+    args = (uri, parent, task, jobs)
+    try:
+        _lab = (_pool.submit(_log_lab_here, *args), args)
+    except BrokenProcessPool:
+        return False
+    return True
+
+
+def _drain_lab() -> None:
+    """Wait for the lab steps queued on the renderer (made here if it has not started them); a failure is
+    a warning, as when the callback makes them."""
+    global _lab
+    if _lab is None:
+        return
+    (fut, args), _lab = _lab, None
+    try:
+        warning = _log_lab_here(*args) if fut.cancel() else fut.result()
+    except Exception as exc:  # noqa: BLE001 — the renderer died, or the store refused the upload
+        warning = f"lab steps not logged: {type(exc).__name__}: {exc}"
+    if warning:
+        log.warning("%s", warning)
 
 
 def _worker_start(env: dict[str, str], launcher: int) -> None:
@@ -107,7 +172,8 @@ def drain() -> dict[str, str]:
     """Wait for every queued render, drawing the runs the renderer has not started yet here, beside it (the
     caller waits anyway, and the renderer lags a few runs behind at a sweep's end); returns ``{run id:
     error}`` for runs that could not be finished (the renderer's process died, or uploading failed): those
-    are marked FAILED with the error, never left RUNNING."""
+    are marked FAILED with the error, never left RUNNING.  The lab steps queued first are waited for first."""
+    _drain_lab()
     failed = {}
     for run_id in [run_id for run_id, (_, fut, _) in _pending.items() if fut.cancel()]:
         uri, _, inputs = _pending.pop(run_id)
@@ -130,8 +196,10 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
     """Stop the renderer without waiting (the sweep is dying; its process is terminated, or the
     interpreter's exit would wait for the figures in flight): runs whose figures were not drawn get
     ``status`` — those still queued, in flight, and those whose renderer died (SIGTERM reaches it too).
-    ``write=False``: mark nothing (the store cannot be reached)."""
-    global _pool
+    ``write=False``: mark nothing (the store cannot be reached).  Lab steps not made are left for the next
+    launch of the sweep (its parent run lacks ``lab_logged``)."""
+    global _pool, _lab
+    _lab = None
     left = [run_id for run_id, (_, fut, _) in _pending.items()
             if not (fut.done() and not fut.cancelled() and fut.exception() is None)]
     if _pool is not None:

@@ -596,8 +596,9 @@ def log_batch(client: MlflowClient, run_id: str, params: dict | None = None,
     )
 
 
-def log_files(client: MlflowClient, run_id: str, files: dict) -> None:
-    """Upload ``{artifact path: content}`` in one call; content is str, bytes (e.g. a PNG), dict (JSON) or a Path."""
+def log_files(client: MlflowClient, run_id: str, files: dict, artifact_uri: str | None = None) -> None:
+    """Upload ``{artifact path: content}`` in one call; content is str, bytes (e.g. a PNG), dict (JSON) or a Path.
+    ``artifact_uri``: the run's (``create_run``'s answer), which MLflow otherwise reads the whole run for."""
     with tempfile.TemporaryDirectory(prefix="maglev-artifacts-") as tmp:
         for rel, content in files.items():
             path = Path(tmp) / rel
@@ -614,7 +615,12 @@ def log_files(client: MlflowClient, run_id: str, files: dict) -> None:
                 path.write_bytes(content.read_bytes())
             else:
                 raise TypeError(f"log_files: {rel}: expected str, bytes, dict or Path, got {type(content).__name__}")
-        client.log_artifacts(run_id, tmp)
+        if artifact_uri is None:
+            client.log_artifacts(run_id, tmp)
+        else:
+            from mlflow.store.artifact.artifact_repository_registry import get_artifact_repository
+
+            get_artifact_repository(artifact_uri, tracking_uri=client.tracking_uri).log_artifacts(tmp)
 
 
 def download_text(client: MlflowClient, run_id: str, path: str) -> str:

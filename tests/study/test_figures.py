@@ -26,3 +26,53 @@ def test_several_runs_of_a_dataset_and_orders_draw_their_mean():
                          "val_fit": [80.0, 70.0, 85.0, 86.0, 90.0, 95.0]})
     bars = _bars(comparison_figure(comp, None, "oe"))
     assert bars == {"bin (binary)": [90.0, 95.0], "uni (uniform), mean of up to 2 runs": [75.0, 85.5]}
+
+
+def _run_inputs(*overrides: str):
+    """A short simulated run's figure inputs (identified as a sweep's job is)."""
+    from hydra import compose, initialize_config_dir
+
+    import maglev.study.schema  # noqa: F401  (schemas and ${maglev.root:})
+    from maglev.study.config import task_config
+    from maglev.study.identify import identify
+
+    from .harness import CONF, TINY
+
+    with initialize_config_dir(version_base="1.3", config_dir=str(CONF)):
+        cfg = task_config(compose("config", overrides=[*TINY, "study.true_plant=false", *overrides]))
+    return identify(cfg).figure_inputs
+
+
+def _pixels(fig):
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    from maglev.study.figures import RUN_DPI, png
+
+    return np.asarray(Image.open(io.BytesIO(png(fig, RUN_DPI))))
+
+
+def test_a_runs_figures_drawn_on_another_runs_are_the_images_new_figures_give():
+    """The renderer draws every run on the figures of the run before (maglev.plots.clear): nothing of that run
+    may show — another structure, dataset, horizon and number of systems (the small-signal Jacobian in one)."""
+    import dataclasses
+
+    from maglev.study.figures import run_figures
+    from maglev.study.identify import true_plant
+
+    first = _run_inputs("structure=bj", "structure.order=3", "dataset=binary_a025")
+    true_sys = true_plant(first.prepared, "stuck_stretched")
+    first = dataclasses.replace(first, jacobian=(true_sys.A, true_sys.B, true_sys.C, true_sys.D, true_sys.dt))
+    second = _run_inputs("structure=arx", "structure.order=2", "dataset=uniform_narrow", "study.val_horizon=5")
+    kept: dict = {}
+    for fig in run_figures(first, reuse=kept).values():
+        _pixels(fig)  # drawn, as the renderer does
+    again = run_figures(second, reuse=kept)
+    assert set(again) == set(kept) == {"compare.png", "resid.png", "pzmap.png", "step.png", "bode.png"}
+    new = run_figures(second)
+    for name in new:
+        a, b = _pixels(new[name]), _pixels(again[name])
+        assert a.shape == b.shape and (a == b).all(), f"{name}: {(a != b).any(axis=-1).sum()} pixels differ"
+        assert again[name] is kept[name] and len(new[name].axes) == len(kept[name].axes)

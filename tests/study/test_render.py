@@ -81,3 +81,22 @@ def test_drain_draws_the_runs_the_busy_renderer_has_not_started(store):
     for run in runs:  # each finished, with its drawing error tagged (inputs=None), none lost
         got = client.get_run(run)
         assert got.info.status == "FINISHED" and got.data.tags["figures_error"].startswith("AttributeError")
+
+
+def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_failure_a_warning(store):
+    """The sweep's lab steps go to the renderer first (the runs estimate meanwhile); the ranking reads them after
+    drain.  Without a renderer nothing is queued: the sweep callback makes them itself."""
+    from .harness import study_log
+
+    uri, client, exp = store
+    render.abandon()  # no renderer left from an earlier test
+    assert render.submit_lab(uri, "no-parent", {}, []) is False
+    render.start()
+    parent = client.create_run(exp).info.run_id
+    assert render.submit_lab(uri, parent, {}, [])  # a task without a lab section: lab_steps raises
+    with study_log() as lines:
+        assert render.drain() == {}
+    assert client.get_run(parent).data.tags["lab_error"] == "KeyError: 'lab'"
+    assert lines == ["lab steps failed: KeyError: 'lab'"]
+    render.abandon()
+

@@ -208,3 +208,17 @@ def test_a_new_store_is_mlflows_own_empty_store_copied_from_the_cache(tmp_path, 
     assert _schema(tmp_path / "third.db") == _schema(own)
     assert [e.name for e in MlflowClient(tracking_uri=f"sqlite:///{tmp_path}/third.db").search_experiments()] == \
         ["Default"]
+
+
+def test_files_uploaded_with_the_runs_artifact_uri_land_where_mlflow_puts_them(migrated_store):
+    """A job uploads with the artifact URI create_run answered (MLflow would read the whole run back for it)."""
+    from maglev.study import tracking
+
+    client, exp = tracking.connect({"uri": f"sqlite:///{migrated_store}/mlflow.db", "experiment": "maglev",
+                                    "artifact_location": str(migrated_store / "a")})
+    runs = [client.create_run(exp).info for _ in range(2)]
+    tracking.log_files(client, runs[0].run_id, {"a/b.txt": "one"})
+    tracking.log_files(client, runs[1].run_id, {"a/b.txt": "two"}, runs[1].artifact_uri)
+    for info, text in zip(runs, ("one", "two")):
+        assert [f.path for f in client.list_artifacts(info.run_id, "a")] == ["a/b.txt"]
+        assert tracking.download_text(client, info.run_id, "a/b.txt") == text

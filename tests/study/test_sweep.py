@@ -37,7 +37,7 @@ def sweep(tmp_path_factory, migrated_db):
 
 
 def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
-    store, _, _ = sweep
+    store, _, lines = sweep
     client, _, runs = all_runs(store)
     parents = [r for r in runs if r.data.tags.get("kind") == "sweep"]
     kids = [r for r in runs if r.data.tags.get("kind") == "model"]
@@ -48,6 +48,7 @@ def test_sweep_runs_are_finished_children_with_metrics_and_artifacts(sweep):
     assert {"lab/working_region.png", "lab/rise_time.png", "lab/output_spectrum.png", "lab/alpha.png",
             "lab/lab.json", "lab/decisions.json"} <= artifact_paths(client, parent.info.run_id)
     assert 0 < parent.data.metrics["lab.alpha_star"] <= 1
+    assert any("lab steps" in line and "made in the background while the runs go on" in line for line in lines)
     from maglev.lab.decision import read_decisions  # the schema the report reads: every decision, with its rule
     decisions = read_decisions(json.loads(open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")).read()))
     assert {"working_region", "records", "data_length", "alpha", "delay"} <= set(decisions)

@@ -196,6 +196,7 @@ def rank_and_report(uri: str, experiment: str, parent: str | None, structure: st
     from maglev.study.decisions import with_orders
 
     sweep = load_sweep(uri, experiment, parent)
+    quick = None
     if reuse:
         quick = compute(sweep, structure, draw=False)
         previous = previous_ranking_run(quick)
@@ -205,7 +206,7 @@ def rank_and_report(uri: str, experiment: str, parent: str | None, structure: st
             print(f"ranking run: {previous} (reused: it ranked these same runs)\nreport:      {path.resolve()} "
                   f"(unchanged)\nMLflow UI:   {ui_hint(sweep, previous)}", flush=True)
             return previous, path.resolve()
-    ranking = compute(sweep, structure)
+    ranking = compute(sweep, structure, ranked=quick)
     decisions = with_orders(artifact_json(sweep.client, sweep.parent_id, "lab/decisions.json"), ranking.orders)
     if decisions:  # the last decision of lab/decisions.json, made from the ranked runs
         log_files(sweep.client, sweep.parent_id, {"lab/decisions.json": decisions})
