@@ -21,6 +21,18 @@ TESTS = Path(__file__).resolve().parent
 # and runs minutes: its own CI stage runs it with MAGLEV_CLUSTER=1; the suite's default run leaves it out.
 collect_ignore_glob = [] if os.environ.get("MAGLEV_CLUSTER") == "1" else ["cluster/*"]
 
+# Tests that start a real MLflow server (`mlflow server`, `maglev ui`, ≈ 6–10 s of a process each, and their
+# waits) are a service stage of their own, like the cluster's: CI runs them after the suite with
+# MAGLEV_SERVICE=1 (`python -m pytest -q -m service`, .ci/run); the suite's default run skips them, saying so.
+SERVICE = (
+    "study/test_server.py",
+    "study/test_processes.py::test_a_server_killed_in_the_middle_of_a_sweep_ends_it_within_a_minute_leaving_no_process",
+    "study/test_ui.py::test_sigterm_to_maglev_ui_stops_its_server",
+    "study/test_sweep.py::test_maglev_ui_serves_the_store_lightly_opened_on_the_sweep_in_model_training_mode",
+)
+SERVICE_SKIP = pytest.mark.skip(reason="starts a real MLflow server: the service stage runs it "
+                                       "(MAGLEV_SERVICE=1 python -m pytest -q -m service)")
+
 # The README's command runs the suite in two pytest-xdist workers, whole files at a time (--dist loadfile),
 # handing a worker its next file once it has at most 2 tests left.  xdist's default order (files with the
 # most tests first) leaves the end-to-end files, a few tests of 5–35 s each, for last, and one worker
@@ -95,13 +107,13 @@ SLOW = (
 )
 
 
-def is_slow(item: pytest.Item) -> bool:
-    """Whether ``SLOW`` names the item's file or its test function."""
+def listed(item: pytest.Item, names: tuple[str, ...]) -> bool:
+    """Whether ``names`` (``SLOW``, ``SERVICE``) names the item's file or its test function."""
     try:
         path = item.path.relative_to(TESTS).as_posix()
     except ValueError:
         return False
-    return path in SLOW or f"{path}::{item.name.split('[')[0]}" in SLOW
+    return path in names or f"{path}::{item.name.split('[')[0]}" in names
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -110,7 +122,8 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Files of ``LONGEST_FIRST`` first, in that order; the rest after them, as collected; ``SLOW`` marked slow."""
+    """Files of ``LONGEST_FIRST`` first, in that order; the rest after them, as collected; ``SLOW`` marked slow;
+    ``SERVICE`` marked service, and skipped unless ``MAGLEV_SERVICE=1``."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
 
     def key(item: pytest.Item) -> int:
@@ -120,9 +133,14 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             return len(rank)
 
     items.sort(key=key)
+    service_stage = os.environ.get("MAGLEV_SERVICE") == "1"
     for item in items:
-        if is_slow(item):
+        if listed(item, SLOW):
             item.add_marker(pytest.mark.slow)
+        if listed(item, SERVICE):
+            item.add_marker(pytest.mark.service)
+            if not service_stage:
+                item.add_marker(SERVICE_SKIP)
 
 
 @pytest.fixture
