@@ -41,10 +41,10 @@ SERVICE_SKIP = pytest.mark.skip(reason="starts a real MLflow server: the service
 # waits for (servers, signals, processes in parallel):
 LONGEST_FIRST = (
     "study/test_report.py",       # 47: the default sweep, its BLAs estimated, ranked and reported
-    "study/test_processes.py",    # 38: a server killed mid-sweep, kill -9 of joblib's launcher, Ctrl-C, SIGTERM
+    "study/test_processes.py",    # 38: kill -9 of joblib's launcher, Ctrl-C, SIGTERM (a server killed: SERVICE)
     "study/test_concurrency.py",  # 40: two launches at once (twice), SIGTERM, kill -9
     "sim/test_calibrate.py",      # 24: the simulator's checks against the real records
-    "study/test_server.py",       # 16 and its server's ~10: submitit's job processes, a password in the URI
+    "study/test_server.py",       # 16 and its server's ~10 (SERVICE): submitit's jobs, a password in the URI
     "study/test_report_real.py",  # 25: the real sweep, ranked, reported and printed
     "study/test_sweep.py",        # 19: a sweep, maglev ui
     "estimation/test_nested_orders.py",  # 21
