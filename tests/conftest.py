@@ -104,6 +104,14 @@ SLOW = (
     "sim/test_bla.py::test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies",
     "sim/test_labdata.py::test_labdata_cli_writes_loadable_files",
     "sim/test_plant.py::test_batch_simulation_is_the_loop_over_records",
+    "study/test_decisions.py::test_the_simulated_sweeps_datasets_are_the_record_rules_choice_from_the_simulated_lab_set",
+    "study/test_render.py::test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_failure_a_warning",
+    "study/test_hostile.py::test_a_sweep_tag_read_back_from_the_store_cannot_move_the_report",
+    "study/test_store.py::test_a_new_store_is_mlflows_own_empty_store_copied_from_the_cache",
+    "study/test_figures.py::test_a_runs_figures_drawn_on_another_runs_are_the_images_new_figures_give",
+    "study/test_faults.py::test_rank_against_a_closed_port_says_so_in_one_line",
+    "study/test_report_pdf.py::test_pages_before_the_appendix_heading_are_counted",
+    "study/test_store.py::test_a_damaged_store_is_answered_in_one_line_by_every_command_and_a_sweep",
 )
 
 
