@@ -13,6 +13,7 @@ config) does not pay for scipy.signal and the estimators (≈ 1 s of CPU per pro
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -28,9 +29,13 @@ _HOME = {"IOData": "data", "PolyModel": "model", "FitReport": "model", "PolySpec
 
 
 def __getattr__(name: str) -> Any:
-    if name not in _HOME:
+    """A top-level name (``arx``, ``IOData``, ...) or a submodule (``maglev.validation``), imported now."""
+    if name in _HOME:
+        value = getattr(importlib.import_module(f"maglev.{_HOME[name]}"), name)
+    elif not name.startswith("__") and importlib.util.find_spec(f"maglev.{name}") is not None:
+        value = importlib.import_module(f"maglev.{name}")  # `import maglev; maglev.validation.fit` as before
+    else:
         raise AttributeError(f"module 'maglev' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"maglev.{_HOME[name]}"), name)
     globals()[name] = value
     return value
 
