@@ -135,10 +135,10 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     Returns ``{"chosen", "best", "grid", "fit": {order: mean FIT}, "datasets", "edge", "suggest", "bla",
     "bla_datasets", "cancellations"}`` (None with fewer than two orders).  ``chosen`` is the orders decision's
     (:func:`maglev.lab.orders.final_order`: the orders from the first one whose added poles are cancelled by
-    zeros, and an order whose models move away from the best linear approximation, do not count).  ``edge`` is ``"upper"`` when the chosen order is the
-    largest swept (every lower order simulates more than ``margin`` worse: the FIT still rises at the top of the
-    grid), ``"lower"`` when the smallest swept order (> 1) simulates more than ``margin`` better than every other
-    (the FIT falls as the order rises from the bottom), else None: the FIT levels off inside the grid or within
+    zeros, and an order whose models move away from the best linear approximation, do not count).  ``edge`` is
+    ``"upper"`` when the chosen order is the largest swept (every lower order simulates more than ``margin`` worse:
+    the FIT still rises at the top of the grid), ``"lower"`` when the smallest swept order (> 1) simulates more
+    than ``margin`` better than every other (the FIT falls as the order rises from the bottom), else None: the FIT levels off inside the grid or within
     the margin across it.  ``bla`` is the mean ``g_bla_err`` by order over the ``bla_datasets`` datasets that
     have it at every order (empty for recorded data), which the orders rule reads.
     """
@@ -152,8 +152,8 @@ def order_choice(runs: pd.DataFrame, margin: float = ORDER_MARGIN) -> dict | Non
     fit = {int(o): float(v) for o, v in by.mean().sort_index().items()}
     grid = list(fit)
     best = max(fit, key=fit.get)
-    bla, n_bla = _bla_by_order(runs)
-    cancel = cancellations_by_order(runs, list(by.index))
+    bla, n_bla = mean_by_order(runs, "g_bla_err")
+    cancel = mean_by_order(runs, "near_cancellations", list(by.index))[0]
     chosen, settled = final_order(fit, margin, bla, cancel)  # the orders decision's rule (maglev.lab.orders)
     edge, suggest = None, None
     if not settled:
@@ -193,23 +193,16 @@ def order_edges(table: pd.DataFrame) -> list[Caution]:
     return out
 
 
-def _bla_by_order(runs: pd.DataFrame) -> tuple[dict[int, float], int]:
-    """Mean ``g_bla_err`` per order over the datasets that have it at every order, and how many they are
-    (``({}, 0)`` without one: real datasets have no BLA)."""
-    if "g_bla_err" not in runs or runs["g_bla_err"].isna().all():
+def mean_by_order(runs: pd.DataFrame, metric: str, datasets: list[str] | None = None) -> tuple[dict[int, float], int]:
+    """Mean ``metric`` per order over the datasets (of ``datasets``, if given) that have it at every order, and how
+    many they are; ``({}, 0)`` when no run logged it (real datasets have no ``g_bla_err``; runs logged before
+    ``near_cancellations`` existed have none)."""
+    if metric not in runs or runs[metric].isna().all():
         return {}, 0
-    by = runs.pivot_table(index="dataset", columns="order", values="g_bla_err", aggfunc="mean").dropna()
+    if datasets is not None:
+        runs = runs[runs["dataset"].isin(datasets)]
+    by = runs.pivot_table(index="dataset", columns="order", values=metric, aggfunc="mean").dropna()
     return {int(o): float(v) for o, v in by.mean().items()}, len(by)
-
-
-def cancellations_by_order(runs: pd.DataFrame, datasets: list[str]) -> dict[int, float]:
-    """Mean number of near pole-zero cancellations per model (metric ``near_cancellations``) by order over the
-    ``datasets`` (those swept at every order); {} when the runs did not log it."""
-    if "near_cancellations" not in runs or runs["near_cancellations"].isna().all():
-        return {}
-    by = runs[runs["dataset"].isin(datasets)].pivot_table(index="dataset", columns="order",
-                                                            values="near_cancellations", aggfunc="mean").dropna()
-    return {int(o): float(v) for o, v in by.mean().items()}
 
 
 def working_points(datasets: dict[str, float], u_star: float | None, width: float | None) -> list[Caution]:

@@ -341,7 +341,7 @@ def orders_of_table(table) -> Decision | None:
 
     if table is None or table.empty or not {"structure", "order", "dataset", "val_fit_sim"} <= set(table):
         return None
-    from maglev.study.cautions import _bla_by_order, cancellations_by_order
+    from maglev.study.cautions import mean_by_order
 
     fit, aic, bla, cancel = {}, {}, {}, {}
     for st, runs in table.groupby("structure", sort=False):
@@ -352,8 +352,8 @@ def orders_of_table(table) -> Decision | None:
         if "aic" in runs:
             a = runs[runs["dataset"].isin(by.index)].groupby("order")["aic"].mean()
             aic[str(st)] = {int(o): float(v) for o, v in a.items() if int(o) in fit[str(st)]}
-        bla[str(st)] = _bla_by_order(runs)[0]
-        cancel[str(st)] = cancellations_by_order(runs, list(by.index))
+        bla[str(st)] = mean_by_order(runs, "g_bla_err")[0]
+        cancel[str(st)] = mean_by_order(runs, "near_cancellations", list(by.index))[0]
     return orders_decision(fit, aic, PHYSICS_ORDER, bla=bla, cancellations=cancel) if fit else None
 
 
