@@ -18,11 +18,16 @@ import re
 
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study.identify import orders_of
+from maglev.structures import get as get_structure
 from maglev.study.schema import typed
 
 # study keys that change a run's result (the rest — name, skipping, failing — do not)
 HASHED_STUDY_KEYS = ("val_horizon", "resid_lags", "true_plant")
+
+
+def orders_of(section: dict) -> list[int]:
+    """MATLAB order vector of a structure config section, e.g. ``[na nb nk]`` for ARX."""
+    return [int(section[k]) for k in get_structure(section["name"]).orders]
 
 
 class StudyConfigError(ValueError):

@@ -18,6 +18,7 @@ import numpy as np
 from maglev.estimation import estimate
 from maglev.model import PolyModel
 from maglev.structures import get as structure
+from maglev.study.config import orders_of
 from maglev.study.datasets import Prepared, dataset_bla, load, plant_name
 from maglev.threads import single_threaded_blas
 from maglev.validation import ResidResult, compare, naive_fit, resid
@@ -57,11 +58,6 @@ class RunOutput:
     resid: dict
     prepared: Prepared
     figure_inputs: FigureInputs
-
-
-def orders_of(section: dict) -> list[int]:
-    """MATLAB order vector of a structure config section, e.g. ``[na nb nk]`` for ARX."""
-    return [int(section[k]) for k in structure(section["name"]).orders]
 
 
 def orders_string(structure: dict) -> str:
