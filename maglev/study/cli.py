@@ -43,10 +43,11 @@ def _uri(a: argparse.Namespace) -> str:
 
 
 def _rank(a: argparse.Namespace) -> int:
-    from maglev.study.ranking import compute, log_ranking, previous_ranking_run, top_text, ui_hint
     from maglev.study.store import load_sweep
 
-    sweep = load_sweep(_uri(a), a.experiment, a.parent)
+    sweep = load_sweep(_uri(a), a.experiment, a.parent)  # a missing store is answered before the ranking's imports
+    from maglev.study.ranking import compute, log_ranking, previous_ranking_run, top_text, ui_hint
+
     ranking = compute(sweep, a.structure, draw=False)
     run_id = None if a.force else previous_ranking_run(ranking)
     reused = run_id is not None
