@@ -61,11 +61,15 @@ def test_a_sticking_plants_static_curve_is_fitted_to_its_simulated_staircase():
 
 
 # ---------------------------------------------------------------------- dynamics
+@pytest.fixture(scope="module")
+def targets() -> calibrate.FrictionTargets:
+    """The real records' numbers the friction fit scores (read once for the file: they never change)."""
+    return calibrate.friction_targets(REAL)
+
 
 @needs_real
 @pytest.mark.realdata
-def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_and_the_previous_defaults():
-    targets = calibrate.friction_targets(REAL)
+def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_and_the_previous_defaults(targets):
     fitted = rig()
     errors, penalty = calibrate.friction_errors(fitted, targets)
     legacy = {k: v for k, v in errors.items() if k.startswith("mode ") or k == "rise time"}
@@ -147,11 +151,11 @@ def test_fit_friction_refuses_a_start_it_cannot_take_the_log_of():
 
 @needs_real
 @pytest.mark.realdata
-def test_friction_errors_are_the_declared_checks_of_the_printed_comparison():
+def test_friction_errors_are_the_declared_checks_of_the_printed_comparison(targets):
     # the fit scores the checks of maglev.sim.checks the calibration scores, on the same numbers the printed
     # comparison states; only the frequency responses differ (one replay's estimate where the table has the BLA)
     lev = rig("stick_slip").with_params(coulomb_upper=0.04)  # not a named plant
-    errors, _ = calibrate.friction_errors(lev, calibrate.friction_targets(REAL))
+    errors, _ = calibrate.friction_errors(lev, targets)
     cmp = sim_vs_real.compare(lev, REAL, fourth_order_records=(checks.WHITE_RECORD,), frf_records=())
     expected = {f"{name} {part}".strip(): (calibrate.MISSING_MODE_ERROR if np.isnan(err) else err)
                 for name, parts in checks.errors(cmp, scored_only=True).items() for part, err in parts.items()}
