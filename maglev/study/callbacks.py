@@ -269,6 +269,9 @@ class SweepCallback(Callback):
             skipping = all(j["study"]["skip_finished"] for j in jobs)
             log.info("sweep %r: %d configs checked; %d to run, %d FINISHED already%s", name, configs,
                      configs - finished if skipping else len(jobs), finished, " (skipped)" if skipping else "")
+        server = task["tracking"]["uri"].startswith(("http://", "https://"))
+        if server:  # one that does not answer ends the sweep here, before the processes below start for nothing
+            client, exp_id = tracking.connect(task["tracking"])
         missing = datasets.missing_blas(jobs)
         if missing:
             log.info("estimating the best linear approximations of %s in the background (once; then cached); "
@@ -278,7 +281,8 @@ class SweepCallback(Callback):
         if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
             # its process imports while the store and the lab steps are made; MLflow's HTTP bounds first
             render.start(tracking.tracking_env(task["tracking"]))
-        client, exp_id = tracking.connect(task["tracking"])
+        if not server:  # a SQLite store is made while the processes above import
+            client, exp_id = tracking.connect(task["tracking"])
         self.client, self.exp_id = client, exp_id
         sid = sweep_id(config, task)
         sweep_dir = Path(config.hydra.sweep.dir).resolve()
