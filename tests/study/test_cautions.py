@@ -186,7 +186,7 @@ def test_ranking_and_report_follow_the_residual_tests_both_ways(tmp_path, migrat
     # pass counts for it against the best's failure
     assert "arx[2 2 2] · b fails the independence test (p = 1e-06; the input explains" in page
     assert "oe[2 2 2] · u passes the independence test (p = 0.993; the input explains 98.6 % of the output on " \
-           "u[val], so the test has power)" in page
+           "u's validation data, so the test has power)" in page
     assert "Whiteness: arx[2 2 2] · b passes (p = 0.5), oe[2 2 2] · u passes (p = 0.5)." in page
     assert "leaves more structure" not in page
     text = top_text(r)

@@ -17,10 +17,11 @@ import pandas as pd
 
 from maglev.lab.records import ALPHA_TOLERANCE, EST_MIN_S, INPUT_OUTSIDE_MAX, VAL_MIN_S, share_outside
 from maglev.model import CANCEL_TOL, PolyModel
-from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.ranking import validation_note
+from maglev.study.report.verdicts import validation_data
+from maglev.units import U_UNIT, Y_UNIT
 from maglev.validation import TEST_LEVEL, format_p
 
 
@@ -75,23 +76,31 @@ def bullets(items: Iterable[str]) -> str:
 
 
 EVIDENCE_ROWS = 4  # a decision's evidence table stays in its section up to this many rows, else goes to Appendix E
+# the columns of a long evidence table its section prints whatever its length (one row per record: its verdict)
+SUMMARY_COLUMNS = {"records": ("record", "class", "u range (A)", "α", "score", "verdict")}
 
 
 def decision(decisions: dict | None, name: str) -> str:
-    """A lab decision the sweep logged (``lab/decisions.json``, :class:`maglev.lab.decision.Decision`): its rule,
-    choice, reasons and cautions, with its evidence table when it is short (Appendix E holds the long ones);
-    "" when the sweep logged none of that name."""
+    """A lab decision the sweep logged (``lab/decisions.json``, :class:`maglev.lab.decision.Decision`): its choice in
+    words, its rule, reasons and cautions, with its evidence table when it is short (Appendix E holds the long ones;
+    of those, the :data:`SUMMARY_COLUMNS` of every row stay in the section); "" when the sweep logged none of that
+    name."""
     d = (decisions or {}).get(name)
     if d is None:
         return ""
     rows = d.rows()
-    text = "; ".join(f"{label}: {value}" for label, value in rows if label in ("rule", "choice"))
+    rule, choice = (next(v for label, v in rows if label == key) for key in ("rule", "choice"))
     extra = [f"{label}: {value}" for label, value in rows if label not in ("rule", "choice")]
     header, cells = d.table_rows()
     short = 0 < len(cells) <= EVIDENCE_ROWS
-    return (para(f"<b>Decision {esc(name)}</b> — {text}"
-                 + ("" if short or not cells else f" (evidence: {len(cells)} rows, Appendix E)") + ".")
-            + (bullets(extra) if extra else "") + (evidence_table(header, cells) if short else ""))
+    keep = [header.index(c) for c in SUMMARY_COLUMNS.get(name, ()) if c in header]
+    summary = not short and len(keep) == len(SUMMARY_COLUMNS.get(name, ())) > 0
+    where = "" if short or not cells else (" (the table below; all its evidence in Appendix E)" if summary else
+                                           f" (evidence: {len(cells)} rows, Appendix E)")
+    table_ = (evidence_table(header, cells) if short else
+              evidence_table([header[i] for i in keep], [[r[i] for i in keep] for r in cells]) if summary else "")
+    return para(f"<b>Decision on the {esc(d.title)}: {choice}.</b> Rule: {rule.rstrip('.')}{where}.") + (
+        bullets(extra) if extra else "") + table_
 
 
 def evidence_table(header: list[str], cells: list[list[str]]) -> str:
@@ -103,10 +112,10 @@ def evidence_table(header: list[str], cells: list[list[str]]) -> str:
 def decisions_evidence(decisions: dict | None) -> str:
     """Appendix E: the evidence of every decision too long to print in its section."""
     parts = []
-    for name, d in (decisions or {}).items():
+    for d in (decisions or {}).values():
         header, cells = d.table_rows()
         if len(cells) > EVIDENCE_ROWS:
-            parts.append(f"<h3>{esc(name)}</h3>" + evidence_table(header, cells))
+            parts.append(f"<h3>Decision on the {esc(d.title)}</h3>" + evidence_table(header, cells))
     return section("decisions-evidence", "E. Evidence of the lab decisions", *parts) if parts else ""
 
 
@@ -351,11 +360,11 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
         if n_cancel:
             at_final = sum(len(models[i].near_cancellations(tol)) for i in final["run_id"])
             text += (f" {n_cancel} near pole-zero cancellation(s) (|p−z| &lt; {tol}) among its models"
-                     + (f", {at_final} of them at order {int(final['order'].iloc[0])}" if len(final) else "")
-                     + ": each a pole the data may not support; the orders decision stops where they grow by one "
-                       "per model and order.")
+                     + (f", {at_final} of them at order {int(final['order'].iloc[0])}." if len(final) else "."))
         lines.append(text)
-    parts += [bullets(lines), table(order_summary(table_, models, tol)), decision(decisions, "orders"),
+    note = para("A near cancellation is a pole the data may not support: the orders rule stops where they grow by "
+                "one per model and order.") if any("near pole-zero cancellation" in t for t in lines) else ""
+    parts += [bullets(lines), note, table(order_summary(table_, models, tol)), decision(decisions, "orders"),
               decision(decisions, "delay")]
     return section("structures", "5. Model structures and orders", *parts)
 
@@ -367,13 +376,15 @@ def top_four(ranking) -> str:
     text = para(f"{len(ranking.table)} models ranked by one-step-ahead FIT on validation data (the lab's eq. 5; ties "
                 "to fewer parameters)"
                 + (", ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(ranking.sweep.ignored.items()))
-                   if ranking.sweep.ignored else "") + ". Beside each: y(t−1)'s FIT on the same data (val_fit_naive: "
-                "a model must beat it to add anything) and the simulation FIT (val_fit_sim: G alone).")
+                   if ranking.sweep.ignored else "") + ". Beside each: the one-step FIT of the naive predictor "
+                "ŷ(t) = y(t−1) on the same data (a model must beat it to add anything) and the simulation FIT (the "
+                "output from the input alone: G without the noise model).")
     from maglev.lab.orders import statuses
 
     status = statuses(ranking.orders)
-    lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])} "
-             f"(y(t−1): {num(r['val_fit_naive'])} %, simulation: {num(r['val_fit_sim'])} %), "
+    lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on "
+             f"{esc(validation_data(r['val_dataset']))} (y(t−1): {num(r['val_fit_naive'])} %, simulation: "
+             f"{num(r['val_fit_sim'])} %), "
              f"{r['n_params']} parameters; " + esc(order_place(r, status)) + esc(residual_text(r))
              for _, r in ranking.top.iterrows()]
     return section("top4", "6. Top four models", text, bullets(lines), para(esc(residual_summary(ranking.top))),
@@ -382,13 +393,14 @@ def top_four(ranking) -> str:
 
 
 def order_place(row: pd.Series, status: dict[tuple[str, int], str]) -> str:
-    """A ranked run's order against its structure's final order (column ``final_order``, the orders decision's
-    ``status`` by (structure, order))."""
+    """A ranked run's order against the order the orders rule chose for its structure (column ``final_order``, the
+    orders decision's ``status`` by (structure, order))."""
     st, o = str(row["structure"]), int(row["order"])
     if row["final_order"]:
-        return f"order {o}, {st.upper()}'s final order" if (st, o) in status else f"order {o}, the one swept"
+        return (f"order {o}, the one the orders rule chose for {st.upper()}" if (st, o) in status else
+                f"order {o}, the one swept")
     why = status.get((st, o))
-    return f"order {o}, not {st.upper()}'s final order" + (f": {why}" if why else "")
+    return f"order {o}, not the one the orders rule chose for {st.upper()}" + (f": {why}" if why else "")
 
 
 def residual_text(row: pd.Series) -> str:
@@ -412,15 +424,16 @@ def residual_summary(top: pd.DataFrame) -> str:
 
 
 def final_orders_text(ranking) -> str:
-    """How many of the top four are at their structure's final order, and the best-ranked run that is."""
+    """How many of the top four are at the order the orders rule chose for their structure, and the best-ranked run
+    that is."""
     top, table = ranking.top, ranking.table
     k = int(top["final_order"].sum())
     if k == len(top):
-        return f"All {len(top)} are at their structure's final order (§5)."
+        return f"All {len(top)} are at the order the orders rule chose for their structure (§5)."
     first = table[table["final_order"].astype(bool)].iloc[0]
-    return (f"{k} of the top {len(top)} are at their structure's final order (§5); the other {len(top) - k} are at "
-            f"orders the orders rule does not choose: ranked here, not recommended (§9). The best-ranked model at a "
-            f"final order is #{int(first['rank'])} {first['name']} (FIT {num(first['val_fit'])} %).")
+    return (f"{k} of the top {len(top)} are at the order the orders rule chose for their structure (§5); the other "
+            f"{len(top) - k} are at orders it does not choose: ranked here, not recommended (§9). The best-ranked model "
+            f"at a chosen order is #{int(first['rank'])} {first['name']} (FIT {num(first['val_fit'])} %).")
 
 
 def binary_vs_uniform(ranking, lab: dict) -> str:
@@ -432,7 +445,7 @@ def binary_vs_uniform(ranking, lab: dict) -> str:
         return section("binary-vs-uniform", title, para(esc("; ".join(ranking.notes))))
     comp, st = ranking.comparison, ranking.structure
     parts = [para(f"Structure <b>{esc(st.upper())}</b> (the best-fitting structure with models of both input "
-                  "classes). Each record is represented by its model at the structure's final order (§5) with the "
+                  "classes). Each record is represented by its model at the order the orders rule chose (§5) with the "
                   "highest FIT on its own validation data, and every model is evaluated on every record's validation "
                   "data (rows: estimated on, columns: validated on; one-step FIT %):")]
     if ranking.common is None:
@@ -485,9 +498,10 @@ def best_vs_worst(ranking, models_all: dict, lab: dict, physics_modes: list | No
     slope = lab.get("lab.slope")
     bw = v.best_vs_worst(fb, fw, slope)
     refs = references or {}
-    head = (f"Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on {esc(b['val_dataset'])}); "
-            f"worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT {num(w['val_fit'])} % on "
-            f"{esc(w['val_dataset'])}).")
+    question = v.extremes_text(b, w, v.conclusion(ranking.table, slope, ranking.orders), ranking.orders)
+    head = (f"{esc(question)} Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on "
+            f"{esc(validation_data(b['val_dataset']))}); worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT "
+            f"{num(w['val_fit'])} % on {esc(validation_data(w['val_dataset']))}).")
     tally = bw.tally
     better = fb if bw.better == "best" else fw
     verdict = (f"<b>Why one is better:</b> of the checks below, {tally['best']} favour the best model by one-step "
