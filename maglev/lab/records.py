@@ -235,8 +235,11 @@ def choose_records(assessed: Sequence[RecordAssessment], alpha_star: float | Non
             verdicts[a.name] = f"not chosen: score below {chosen[-1].name}'s {chosen[-1].score:.3f}"
         if len(chosen) < n:
             cautions.append(f"only {len(chosen)} {cls} record(s) pass the rule, {n} wanted.")
+        kept = (f" It is chosen all the same: only {len(ranked)} {cls} record(s) pass the rule, {n} wanted." if
+                len(ranked) <= n else f" It is chosen all the same: its score, the shortfall counted, is above "
+                f"{ranked[n].name}'s {ranked[n].score:.3f}.")
         cautions += [f"{a.name}: {a.usable_s:.2f} s after its {a.trim_s:.2f} s start transient, less than the lab's "
-                     f"{EST_MIN_S:g} s + {VAL_MIN_S:g} s." for a in chosen if a.shortfall > 0]
+                     f"{EST_MIN_S:g} s + {VAL_MIN_S:g} s.{kept}" for a in chosen if a.shortfall > 0]
     evidence = [{**a.row(), "verdict": verdicts.get(a.name, f"no {a.input_class} record wanted")}
                 for a in sorted(assessed, key=lambda a: (a.input_class, -a.score))]
     count = {k: sum(v.startswith(k) for v in verdicts.values()) for k in ("chosen", "refused", "not chosen")}

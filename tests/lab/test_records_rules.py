@@ -135,3 +135,22 @@ def test_a_record_whose_input_leaves_the_region_is_refused_however_much_of_it_co
     flipped = choose_records([_record("beyond", "uniform", brief, on_curve), *inside], wanted={"uniform": 2})
     assert flipped.choice == {"uniform": ["beyond", "lower"]}
     assert verdicts(flipped)["narrow"] == f"not chosen: score below lower's {flipped.evidence[1]['score']:.3f}"
+
+
+def test_a_chosen_record_shorter_than_the_labs_minimum_says_why_it_is_chosen_all_the_same():
+    """white_noise_1's case: 15.25 s after its start transient (the lab wants 10 s + 7 s), chosen because only two
+    uniform records pass the rule; with a third passing record scoring below it, the caution gives that score."""
+    from maglev.lab.records import RecordAssessment
+
+    def rec(name, coverage, usable_s):
+        return RecordAssessment(name, "uniform", 1.5, 3.0, 2.25, None, 4.75, usable_s, coverage, 0.125, 0.0, 0.0,
+                                max(0.0, 17.0 - usable_s) / 17.0, True)
+
+    short, other = rec("short", 0.75, 15.25), rec("other", 0.375, 18.5)
+    d = choose_records([short, other], wanted={"uniform": 2})
+    assert d.cautions == ["short: 15.25 s after its 4.75 s start transient, less than the lab's 10 s + 7 s. It is chosen "
+                          "all the same: only 2 uniform record(s) pass the rule, 2 wanted."]
+    third = rec("third", 0.25, 18.5)
+    d = choose_records([short, other, third], wanted={"uniform": 2})
+    assert d.cautions[0].endswith(f"It is chosen all the same: its score, the shortfall counted, is above third's "
+                                  f"{third.score:.3f}.")

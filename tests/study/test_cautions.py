@@ -224,6 +224,13 @@ def test_the_report_judges_the_swept_delay_by_the_models_first_b_coefficient(tru
     else:
         assert ("most models find no response at lag 2, so the swept delay is too small for the data "
                 "(delayest: nk = 3)") in text
+        # the same models when the delay decision rejected nk = 3 (its residuals keep the input at lag 2)
+        kept = sections.delay_evidence(models, delayest_nk=3, rejected=[3])
+        assert kept.endswith("most models find no significant response at lag 2, yet the delay decision below "
+                             "rejects nk = 3: a longer delay leaves the input at the lags it skips in the residuals, "
+                             "so the response at lag 2 is small, not absent (delayest, which fits ARX [2 2 nk] only, "
+                             "gives nk = 3).")
+        assert sections.delay_evidence(models, delayest_nk=3, rejected=[1]) == text  # a shorter one: no change
 
 
 @pytest.mark.parametrize("gain, bla5, ending", [

@@ -391,15 +391,25 @@ def test_the_top_four_carry_their_residual_tests_and_how_many_fail_each():
 
 @pytest.mark.parametrize("alpha, forced, expected", [
     (0.2511, False, "α = 0.25 = α*, the α whose spectrum puts most power in the output's band"),
-    (0.4969, False, "<b>α = 0.50, not α* = 0.25</b>; no binary record with α nearer α* passes the records rule"),
+    (0.4969, False, "<b>α = 0.50, not α* = 0.25</b>; no binary record with α nearer α* passes the records rule "
+                    "(the table below)"),
     (0.4969, True, "<b>α = 0.50, not α* = 0.25</b>; the config forces this record"),
 ])
 def test_the_binary_records_alpha_is_set_against_alpha_star_and_the_report_says_why_it_differs(alpha, forced,
                                                                                                expected):
     from maglev.study.report.sections import alpha_text, binary_alpha
 
-    records = SimpleNamespace(forced=forced)
+    records = SimpleNamespace(forced=forced, evidence=[])
     assert alpha_text(alpha, 0.25, records).startswith(expected)
+    # the records at α* the rule refuses are named, from the verdicts of its evidence rows
+    refused = [{"record": f"b{i}", "class": "binary", "α": a, "verdict": v} for i, (a, v) in
+               enumerate(((0.251, "refused: 13.2 % of its output outside"), (0.252, "refused: constant input"),
+                          (0.27, "refused: 20 % of its input outside"), (0.4969, "chosen (binary #1)")))]
+    said = alpha_text(alpha, 0.25, SimpleNamespace(forced=forced, evidence=refused))
+    if alpha > 0.3 and not forced:
+        assert said.endswith("; the records rule refuses the binary records at α*, b0, b1 (the table below)")
+        assert alpha_text(alpha, 0.25, SimpleNamespace(forced=False, evidence=refused[:1])).endswith(
+            "refuses the binary record at α*, b0 (the table below)")
     # the α measured by the alpha decision wins over the config's design value; a real record's config has none
     decisions = {"alpha": SimpleNamespace(choice={"real_binary_signal_4": alpha})}
     assert binary_alpha("real_binary_signal_4", {"alpha": None}, decisions) == alpha

@@ -132,7 +132,8 @@ def working_region(lab: dict, lab_png: dict, ts_used: list[float], decisions: di
         return section("working-region", title,
                        para("The sweep's parent run has no lab-level steps (lab.enabled=false or they failed)."))
     g = lab.get
-    text = (f"A staircase of {esc(lab.get('staircase', 'staircase'))} steps the input over the plant's [0, 10] A; "
+    text = (f"The staircase record ({esc(lab.get('staircase', 'staircase'))}) steps the input over the plant's "
+            "[0, 10] A; "
             f"getStationaryAverages (Appendix A) averages the last part of each step's response, after its "
             f"transient. The working region is the widest range of levels on which ȳ against ū stays on a "
             f"straight line and off the saturation plateau (every level near the least-squares line, every "
@@ -212,14 +213,23 @@ def binary_alpha(name: str, ds: dict, decisions: dict | None) -> float | None:
 
 def alpha_text(alpha: float, alpha_star: float, records=None) -> str:
     """A binary record's α against α* (within the alpha decision's tolerance), and why it is not α* when it is not:
-    the records rule's choice (no binary record nearer α* passes it) or the config's (``records``: the records
-    decision, None when the sweep logged none)."""
+    the records rule's choice (no binary record nearer α* passes it: the records at α* it refuses are named, from
+    its evidence rows' verdicts) or the config's (``records``: the records decision, None when the sweep logged
+    none)."""
     if not math.isfinite(alpha_star):
         return f"α = {num(alpha)}"
     if abs(alpha - alpha_star) <= ALPHA_TOLERANCE:
         return f"α = {num(alpha)} = α*, the α whose spectrum puts most power in the output's band"
-    why = ("" if records is None else "; the config forces this record" if records.forced else
-           "; no binary record with α nearer α* passes the records rule (its reasons below)")
+    if records is None:
+        why = ""
+    elif records.forced:
+        why = "; the config forces this record"
+    else:
+        at_star = [str(r["record"]) for r in records.evidence if r.get("class") == "binary" and r.get("α") is not None
+                   and abs(r["α"] - alpha_star) <= ALPHA_TOLERANCE and str(r.get("verdict", "")).startswith("refused")]
+        why = (f"; the records rule refuses the binary record{'s' if len(at_star) > 1 else ''} at α*, "
+               + ", ".join(at_star) + " (the table below)" if at_star else
+               "; no binary record with α nearer α* passes the records rule (the table below)")
     return f"<b>α = {num(alpha)}, not α* = {num(alpha_star)}</b>{why}"
 
 
@@ -240,9 +250,11 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict, decisions:
                 f"the others'. Units: u is the coil current command in {U_UNIT}, y the upper magnet's height in "
                 f"{Y_UNIT}.")
     return section("data", "4. Amount of data", text, table(pd.DataFrame(rows)), decision(decisions, "data_length"))
-def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) -> str:
+def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None, rejected: Sequence[int] = ()) -> str:
     """Whether the identified models support their delay: how many have a first B coefficient b_nk more than
-    two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given."""
+    two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given.  When most
+    do not, but the delay decision ``rejected`` the longer delays (the nk its rule refuses: a longer delay leaves the
+    input at the skipped lags in the residuals), the sentence says the response at lag nk is small, not absent."""
     z = []
     for m in models:
         se = m.std_errors
@@ -265,8 +277,16 @@ def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) 
         text += (f"; delayest's nk = {delayest_nk} (from ARX [2 2 nk]) would leave that coefficient out." if later
                  else ".")
     else:
-        text += (f"most models find no response at lag {shown}, so the swept delay is too small for the data"
-                 + (f" (delayest: nk = {delayest_nk})." if delayest_nk is not None else "."))
+        longer = sorted(k for k in rejected if k > max(nks))
+        if longer:
+            text += (f"most models find no significant response at lag {shown}, yet the delay decision below rejects "
+                     f"nk = {', '.join(map(str, longer))}: a longer delay leaves the input at the lags it skips in the "
+                     f"residuals, so the response at lag {shown} is small, not absent"
+                     + (f" (delayest, which fits ARX [2 2 nk] only, gives nk = {delayest_nk})." if delayest_nk
+                        is not None else "."))
+        else:
+            text += (f"most models find no response at lag {shown}, so the swept delay is too small for the data"
+                     + (f" (delayest: nk = {delayest_nk})." if delayest_nk is not None else "."))
     return text
 
 
@@ -338,7 +358,10 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
             f"selection (arxstruc, na and nb in 1…{int(lab['lab.max_order'])}) picks na = {int(lab['lab.arx_na'])}, "
             f"nb = {int(lab['lab.arx_nb'])} by AIC and na = {int(lab['lab.arx_na_mdl'])}, nb = "
             f"{int(lab['lab.arx_nb_mdl'])} by MDL (Figure in Appendix D)."))
-    delay = delay_evidence([models[i] for i in table_["run_id"]], int(lab["lab.nk"]) if "lab.nk" in lab else None)
+    delay_rule = (decisions or {}).get("delay")
+    rejected = [int(r["nk"]) for r in delay_rule.evidence if r.get("rejected")] if delay_rule is not None else []
+    delay = delay_evidence([models[i] for i in table_["run_id"]], int(lab["lab.nk"]) if "lab.nk" in lab else None,
+                           rejected)
     if delay:
         parts.append(para(delay))
     lines = []
