@@ -47,9 +47,13 @@ from typing import Any
 
 import numpy as np
 
+from maglev.units import U_UNIT, Y_UNIT
+
 __all__ = ["Decision", "DECISION_NAMES", "read_decisions", "write_decisions", "jsonable"]
 
 DECISION_NAMES = ("working_region", "records", "data_length", "alpha", "delay", "orders")
+TITLES = {"working_region": "working region", "records": "records", "data_length": "amount of data",
+          "alpha": "α of the binary record", "delay": "delay", "orders": "model orders"}
 
 
 def jsonable(value: Any) -> Any:
@@ -96,16 +100,19 @@ class Decision:
                    cautions=list(d.get("cautions", [])))
 
     def choice_text(self) -> str:
-        """The choice as one short line (dicts as ``key: value`` pairs)."""
-        def fmt(v: Any) -> str:
-            if isinstance(v, float):
-                return f"{v:.4g}"
-            if isinstance(v, dict):
-                return ", ".join(f"{k}: {fmt(x)}" for k, x in v.items())
-            if isinstance(v, list):
-                return ", ".join(fmt(x) for x in v)
-            return str(v)
-        return fmt(self.choice) + (" (forced by the config)" if self.forced else "")
+        """The choice as a sentence a control engineer reads, with units (:data:`CHOICE_SENTENCES`); a choice of
+        other than the schema's dict (a hand-made decision) as its values."""
+        if not isinstance(self.choice, dict):
+            return _values(self.choice) + (" (forced by the config)" if self.forced else "")
+        text = CHOICE_SENTENCES[self.name](self.choice)
+        said = "forced" in self.choice or "rule" in self.choice  # records and delay say it in their sentence
+        forced = " (the trim is the config's)" if self.name == "data_length" else " (forced by the config)"
+        return text + (forced if self.forced and not said else "")
+
+    @property
+    def title(self) -> str:
+        """The decision's name in words (its key stays in ``decisions.json``)."""
+        return TITLES[self.name]
 
     def rows(self) -> list[tuple[str, str]]:
         """(label, HTML-escaped text) rows: rule, choice, reasons, cautions — the evidence table is
@@ -127,6 +134,81 @@ class Decision:
                 return "yes" if v else "no"
             return html.escape("" if v is None else str(v))
         return [html.escape(h) for h in header], [[cell(r.get(h)) for h in header] for r in self.evidence]
+
+
+# ------------------------------------------------------------------------------------- the choice in words
+def _values(v: Any) -> str:
+    """A choice's values (floats to 4 significant digits)."""
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, dict):
+        return ", ".join(_values(x) for x in v.values())
+    if isinstance(v, list):
+        return ", ".join(_values(x) for x in v)
+    return str(v)
+
+
+def _listed(names: list) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    names = [str(n) for n in names]
+    return " and ".join(names) if len(names) < 3 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def _region(c: dict) -> str:
+    text = (f"working region {c['u_min']:.3g}–{c['u_max']:.3g} {U_UNIT}, working point u* = {c['u_star']:.3g} "
+            f"{U_UNIT}, static gain (slope of ȳ against ū) {c['slope']:.3g} {Y_UNIT}/{U_UNIT}")
+    if c.get("u_sat_model") is not None:
+        text += f"; the physical model's current regulator saturates at {c['u_sat_model']:.3g} {U_UNIT}"
+    return text
+
+
+CLASS_WORDS = {"uniform": ("uniform white-noise record", "uniform white-noise records"),
+               "binary": ("random binary record", "random binary records")}
+
+
+def _by_class(choice: dict) -> str:
+    parts = []
+    for cls, names in choice.items():
+        one, many = CLASS_WORDS.get(cls, (f"{cls} record", f"{cls} records"))
+        parts.append(f"{one if len(names) == 1 else many} {_listed(names)}" if names else f"no {one}")
+    return "; ".join(parts)
+
+
+def _records(c: dict) -> str:
+    if "forced" in c:
+        return (f"the records the config names, {_listed(c['forced'])}, forced by the config (the rule would choose "
+                f"{_by_class(c['rule'])})")
+    return _by_class(c)
+
+
+def _length(c: dict) -> str:
+    texts = {name: f"{v['trim_s']:.2f} s trimmed, {v['est_s']:.2f} s estimation + {v['val_s']:.2f} s validation"
+             for name, v in c.items()}
+    if len(set(texts.values())) == 1 and len(texts) > 1:
+        return "each record " + next(iter(texts.values()))
+    return "; ".join(f"{name} {t}" for name, t in texts.items())
+
+
+def _alpha(c: dict) -> str:
+    return "; ".join(f"α = {a:.3f} for {name} (its measured switching probability per recorded sample)"
+                     for name, a in c.items())
+
+
+def _delay(c: dict) -> str:
+    ts = f" = {1000 * c['nk'] * c['Ts']:.3g} ms" if c.get("Ts") else ""
+    text = f"an input delay of nk = {int(c['nk'])} samples{ts}"
+    if "rule" in c:
+        text += f", set by the config (the rule's answer is nk = {int(c['rule'])})"
+    return text
+
+
+def _orders(c: dict) -> str:
+    return ", ".join(f"{st.upper()} order {int(o)}" for st, o in c.items())
+
+
+# the sentence of each decision's choice (its shape: the schema at the top of this module)
+CHOICE_SENTENCES = {"working_region": _region, "records": _records, "data_length": _length, "alpha": _alpha,
+                    "delay": _delay, "orders": _orders}
 
 
 def write_decisions(decisions: dict[str, Decision] | list[Decision]) -> dict:

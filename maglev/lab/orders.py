@@ -147,34 +147,39 @@ def orders_decision(fit: dict[str, dict[int, float]], aic: dict[str, dict[int, f
         if physics_order is not None:
             extra.append(f"the physical model has {physics_order} states")
         tail = f" ({'; '.join(extra)})" if extra else ""
+        name = st.upper()
+        parts = []  # why the orders that do not count do not (the mean FIT by order is the report's table)
         if cut is not None:
             below = max(o for o in grid if o < cut and o in st_cancel)
             above = [o for o in grid if o > cut]
-            reasons.append(f"{st}: order {cut} adds poles its models cancel with zeros: "
-                           f"{st_cancel[cut]:.2f} near cancellations per model against {st_cancel[below]:.2f} at "
-                           f"order {below} (at least {CANCEL_STEP:g} more per order added), so the data support no "
-                           "further pole; " + (f"order {cut} and the orders above it ({above}) do not count, "
-                                                "whatever FIT they gain." if above else
-                                                f"order {cut} does not count, whatever FIT it gains."))
+            parts.append(f"order {cut} adds poles its models cancel with zeros ({st_cancel[cut]:.2f} near cancellations "
+                         f"per model against {st_cancel[below]:.2f} at order {below}): "
+                         + (f"order {cut} and the orders above it ({above}) do not count, whatever FIT they gain"
+                            if above else f"order {cut} does not count, whatever FIT it gains"))
         if away:
-            reasons.append(f"{st}: order(s) {away} do not count: their models' mean distance to the best linear "
-                           "approximation grows (" + ", ".join(f"order {o}: {st_bla[o]:.3g}" for o in grid if o in st_bla)
-                           + "), so their FIT gain is output the input does not explain linearly, not G.")
+            parts.append(f"order(s) {away} do not count: their models move away from the best linear approximation "
+                         "(mean distance " + ", ".join(f"{o}: {st_bla[o]:.3g}" for o in grid if o in st_bla) + ")")
         if settled:
-            higher = [o for o in grid if o > chosen]
-            reasons.append(f"{st}: order {chosen} — mean simulation FIT {listed}; order(s) {higher} gain less than "
-                           f"{margin:g} point over it or do not count: the FIT has levelled off{tail}.")
+            counted = [o for o in grid if o > chosen and o not in away and (cut is None or o < cut)]
+            if counted:
+                parts.append(f"order(s) {counted} gain less than {margin:g} point over order {chosen}: the FIT has "
+                             "levelled off")
+            reasons.append(f"{name}: order {chosen}, the smallest within {margin:g} point of the best that counts; "
+                           + "; ".join(parts) + f"{tail}.")
         else:
-            cautions.append(f"{st}: order {chosen} is the largest swept ({listed}) and gains more than {margin:g} "
-                            f"point over the orders below: not settled; sweep order {chosen + 1} "
+            if parts:
+                reasons.append(f"{name}: " + "; ".join(parts) + ".")
+            cautions.append(f"{name}: order {chosen} is the largest swept ({listed}) and gains more than {margin:g} "
+                            f"point over the orders below: its FIT has not levelled off; sweep order {chosen + 1} "
                             f"(++hydra.sweeper.orders.{st}=[{','.join(str(o) for o in [*grid, chosen + 1])}]){tail}.")
     rule = (f"Per structure, the smallest swept order whose mean validation simulation FIT is within {margin:g} "
             "point of the best, among the orders that count: the search stops at the first order whose models carry "
             f"at least {CANCEL_STEP:g} more near pole-zero cancellation each, on average, per order added, than the "
             "order below's (its added poles are cancelled by zeros: the data support no further pole), and an order "
-            "whose models move away from the best linear approximation (simulated data) does not count; settled "
-            "when a higher swept order gained less than that or did not count. AIC's minimum and the physical "
-            "model's number of states are shown as evidence.")
+            "whose models move away from the best linear approximation (simulated data) does not count: its FIT gain "
+            "is output the input does not explain linearly, not G. The FIT has levelled off when a higher swept order "
+            "gained less than that or did not count. AIC's minimum and the physical model's number of states are "
+            "shown as evidence.")
     return Decision("orders", rule, choice, rows, reasons, cautions=cautions)
 
 

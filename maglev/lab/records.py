@@ -28,7 +28,7 @@ import numpy as np
 from maglev.lab.decision import Decision
 
 __all__ = ["Transient", "start_transient", "length_split", "switching_rate", "RecordAssessment", "assess",
-           "share_outside", "choose_records", "length_decision", "alpha_decision", "EST_MIN_S", "VAL_MIN_S", "INPUT_OUTSIDE_MAX",
+           "share_outside", "choose_records", "verdicts", "length_decision", "alpha_decision", "EST_MIN_S", "VAL_MIN_S", "INPUT_OUTSIDE_MAX",
            "OUTPUT_OUTSIDE_MAX"]
 
 EST_MIN_S = 10.0  # lab §3.4: at least 10 s of estimation data
@@ -144,10 +144,10 @@ class RecordAssessment:
         if not self.excited:
             out.append("the input is constant: no excitation")
         if self.input_outside > INPUT_OUTSIDE_MAX:
-            out.append(f"{100 * self.input_outside:.1f} % of its input lies outside the working region "
+            out.append(f"{100 * self.input_outside:.1f} % of its input outside the working region "
                        f"(more than {100 * INPUT_OUTSIDE_MAX:g} %)")
         if self.output_outside > OUTPUT_OUTSIDE_MAX:
-            out.append(f"{100 * self.output_outside:.1f} % of its output lies outside the static curve's range "
+            out.append(f"{100 * self.output_outside:.1f} % of its output outside the static curve's range "
                        f"(more than {100 * OUTPUT_OUTSIDE_MAX:g} %)")
         return out
 
@@ -204,40 +204,48 @@ RECORDS_RULE = (
 def choose_records(assessed: Sequence[RecordAssessment], alpha_star: float | None = None,
                    wanted: dict[str, int] | None = None, forced: Sequence[str] | None = None) -> Decision:
     """The records decision: per class, the ``wanted`` count (default 2 uniform, 1 binary) of best-scoring
-    records that pass the refusals; binary records nearest ``alpha_star`` first.  ``forced`` (the names the
-    config forces) replaces the choice, and the evidence still shows where the forced records rank."""
+    records that pass the refusals; binary records nearest ``alpha_star`` first.  Each record's verdict (chosen,
+    refused and why, or what it loses on) is its evidence row's ``verdict``, so the report prints one table row per
+    record; the reasons count them.  ``forced`` (the names the config forces) replaces the choice, and the evidence
+    still shows where the forced records rank."""
     wanted = wanted or {"uniform": 2, "binary": 1}
     choice: dict[str, list[str]] = {}
-    reasons: list[str] = []
+    verdicts: dict[str, str] = {}
     cautions: list[str] = []
     for cls, n in wanted.items():
         members = [a for a in assessed if a.input_class == cls]
         ok = [a for a in members if not a.refusals]
         for a in members:
             if a.refusals:
-                reasons.append(f"{a.name} is refused: " + "; ".join(a.refusals) + ".")
+                verdicts[a.name] = "refused: " + "; ".join(a.refusals)
         pool = ok
         if cls == "binary" and alpha_star is not None and ok:
             nearest = min(abs((a.alpha or 0.0) - alpha_star) for a in ok)
             pool = [a for a in ok if abs((a.alpha or 0.0) - alpha_star) <= nearest + 0.02]
             for a in ok:
                 if a not in pool:
-                    reasons.append(f"{a.name} loses: its α = {a.alpha:.3f} lies {abs(a.alpha - alpha_star):.3f} "
-                                   f"from α* = {alpha_star:g}, the nearest passing records {nearest:.3f}.")
+                    verdicts[a.name] = (f"not chosen: its α is {abs(a.alpha - alpha_star):.3f} from α* = "
+                                        f"{alpha_star:g}, the nearest passing record's {nearest:.3f}")
         ranked = sorted(pool, key=lambda a: -a.score)
         chosen = ranked[:n]
         choice[cls] = [a.name for a in chosen]
         for i, a in enumerate(chosen):
-            reasons.append(f"{a.name} wins ({cls} #{i + 1}): score {a.score:.3f} = covers {100 * a.coverage:.0f} % of "
-                           f"the region − offset {a.offset:.3f} − {100 * a.input_outside:.0f} % of u outside − "
-                           f"shortfall {a.shortfall:.3f}; {100 * a.output_outside:.1f} % of y outside the curve.")
+            verdicts[a.name] = f"chosen ({cls} #{i + 1})"
         for a in ranked[n:]:
-            reasons.append(f"{a.name} loses: score {a.score:.3f}, below {chosen[-1].name}'s {chosen[-1].score:.3f}.")
+            verdicts[a.name] = f"not chosen: score below {chosen[-1].name}'s {chosen[-1].score:.3f}"
         if len(chosen) < n:
             cautions.append(f"only {len(chosen)} {cls} record(s) pass the rule, {n} wanted.")
+        kept = (f" It is chosen all the same: only {len(ranked)} {cls} record(s) pass the rule, {n} wanted." if
+                len(ranked) <= n else f" It is chosen all the same: its score, the shortfall counted, is above "
+                f"{ranked[n].name}'s {ranked[n].score:.3f}.")
         cautions += [f"{a.name}: {a.usable_s:.2f} s after its {a.trim_s:.2f} s start transient, less than the lab's "
-                     f"{EST_MIN_S:g} s + {VAL_MIN_S:g} s." for a in chosen if a.shortfall > 0]
-    evidence = [a.row() for a in sorted(assessed, key=lambda a: (a.input_class, -a.score))]
+                     f"{EST_MIN_S:g} s + {VAL_MIN_S:g} s.{kept}" for a in chosen if a.shortfall > 0]
+    evidence = [{**a.row(), "verdict": verdicts.get(a.name, f"no {a.input_class} record wanted")}
+                for a in sorted(assessed, key=lambda a: (a.input_class, -a.score))]
+    count = {k: sum(v.startswith(k) for v in verdicts.values()) for k in ("chosen", "refused", "not chosen")}
+    reasons = [f"Of {len(assessed)} records, {count['chosen']} chosen, {count['refused']} refused and "
+               f"{count['not chosen']} not chosen for a lower score or an α farther from α*: each record's verdict is "
+               "its row of the table."]
     if forced is not None:
         forced_set = {str(n) for n in forced}
         rule_set = {n for names in choice.values() for n in names}
@@ -248,10 +256,18 @@ def choose_records(assessed: Sequence[RecordAssessment], alpha_star: float | Non
                 if a is not None and a.refusals:
                     cautions.append(f"{name} is forced by the config although the rule refuses it: "
                                     + "; ".join(a.refusals) + ".")
+            for row in evidence:
+                if row["record"] in forced_set - rule_set:
+                    row["verdict"] += "; used: forced by the config"
             reasons.insert(0, f"The config forces {sorted(forced_set)}; the rule would choose {sorted(rule_set)}.")
             return Decision("records", RECORDS_RULE, {"forced": sorted(forced_set), "rule": choice}, evidence,
                             reasons, forced=True, cautions=cautions)
     return Decision("records", RECORDS_RULE, choice, evidence, reasons, cautions=cautions)
+
+
+def verdicts(decision: Decision) -> dict[str, str]:
+    """Each record's verdict in a records decision (its evidence rows' ``verdict``), by record name."""
+    return {str(r["record"]): str(r["verdict"]) for r in decision.evidence if "verdict" in r}
 
 
 # ------------------------------------------------------------------------------------- length and α
@@ -275,28 +291,33 @@ def length_decision(rows: Sequence[dict]) -> Decision:
     if longer:
         reasons.append(f"The trim of {', '.join(longer)} is set by the config (dataset.preprocess.trim), not the "
                        "detected start transient beside it, and kept: it is longer than the transient, so the "
-                       "transient is dropped all the same and only settled output goes too; whether the lab's "
-                       "minimum is still met is stated per dataset below.")
+                       "transient is dropped all the same and only settled output goes too.")
     if shorter:
         reasons.append(f"The trim of {', '.join(shorter)} is set by the config (dataset.preprocess.trim), shorter "
                        "than the detected start transient beside it: part of the transient is identified (a caution "
                        "below).")
+    short = []
     for r in rows:
         name = r["dataset"]
         choice[name] = {"trim_s": r["trim_s"], "est_s": r["est_s"], "val_s": r["val_s"], "split": r["split"]}
         met = r["est_s"] >= EST_MIN_S - 1e-9 and r["val_s"] >= VAL_MIN_S - 1e-9
-        reasons.append(f"{name}: start transient {r['transient_s']:.2f} s, trimmed {r['trim_s']:.2f} s; "
-                       f"{r['est_s']:.2f} s estimation + {r['val_s']:.2f} s validation (split {r['split']:.3f}): "
-                       + ("the lab's minimum is met." if met else "below the lab's minimum."))
         if not met:
+            short.append(name)
             cautions.append(f"{name}: {r['est_s']:.2f} s estimation and {r['val_s']:.2f} s validation data, less than "
                             f"the lab's {EST_MIN_S:g} s and {VAL_MIN_S:g} s: the record is too short after its "
                             f"{r['trim_s']:.2f} s start transient.")
         if r["trim_s"] + 1e-9 < r["transient_s"]:
             cautions.append(f"{name}: the trim {r['trim_s']:.2f} s is shorter than the detected start transient "
                             f"{r['transient_s']:.2f} s.")
-    return Decision("data_length", LENGTH_RULE, choice, [dict(r) for r in rows], reasons,
-                    forced=bool(set_by_config), cautions=cautions)
+    minimum = f"the lab's {EST_MIN_S:g} s of estimation and {VAL_MIN_S:g} s of validation data after"
+    reasons.append(f"{len(rows) - len(short)} of the {len(rows)} records hold {minimum} their trim; "
+                   f"{', '.join(short)} {'does' if len(short) == 1 else 'do'} not (a caution below)." if short else
+                   f"Every record holds {minimum} its trim.")
+    evidence = [{"dataset": r["dataset"], "start transient (s)": r["transient_s"], "trim (s)": r["trim_s"],
+                 "estimation share": r["split"], "estimation (s)": r["est_s"], "validation (s)": r["val_s"]}
+                for r in rows]
+    return Decision("data_length", LENGTH_RULE, choice, evidence, reasons, forced=bool(set_by_config),
+                    cautions=cautions)
 
 
 ALPHA_TOLERANCE = 0.02
@@ -319,4 +340,6 @@ def alpha_decision(rows: Sequence[dict]) -> Decision:
                f"{ALPHA_TOLERANCE:g}: the record is not the signal its name says."))
     rule = ("α = share of the recorded (not decimated) samples where the binary input switches level, the lab's "
             f"per-sample switching probability; compared with the design value (tolerance {ALPHA_TOLERANCE:g}).")
-    return Decision("alpha", rule, choice, [dict(r) for r in rows], reasons, cautions=cautions)
+    evidence = [{"dataset": r["dataset"], "α (switching rate)": r["alpha"], "design α": r.get("design"),
+                 "recorded samples": r["samples"]} for r in rows]
+    return Decision("alpha", rule, choice, evidence, reasons, cautions=cautions)

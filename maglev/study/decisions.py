@@ -270,13 +270,14 @@ def sim_records(datasets: list[dict], wr: WorkingRegion, data_dir: str) -> Decis
     dec = choose_records(assessed, alpha_star)
     chosen = sorted(n for names_ in dec.choice.values() for n in names_)
     sweep = sorted(ds["name"] for ds in datasets)
-    head = [f"The rule chooses from the {len(SIM_RECORDS)} simulated lab records (maglev.study.decisions.SIM_RECORDS) on "
-            f"plant {plant}. α* = {alpha_star:g}, from the output spectrum of {names[best]} on its recorded sample "
-            "axis."]
+    head = [f"The rule chooses from the {len(SIM_RECORDS)} simulated lab records on plant {plant}. α* = "
+            f"{alpha_star:g}, from the output spectrum of {names[best]} on its recorded sample axis."]
     if sweep != chosen:
         dec = choose_records(assessed, alpha_star, forced=sweep)
     dec.reasons[:0] = head
-    dec.evidence.extend(a.row() for a in measured)
+    for a in measured:
+        verdict = "refused: " + "; ".join(a.refusals) if a.refusals else "passes the rule"
+        dec.evidence.append({**a.row(), "verdict": f"outside the simulated set, {verdict}; used: forced by the config"})
     dec.cautions.extend(f"{a.name} is forced by the config although the rule refuses it: " + "; ".join(a.refusals)
                         + "." for a in measured if a.refusals)
     return dec

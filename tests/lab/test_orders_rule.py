@@ -23,14 +23,17 @@ def test_a_known_second_order_system_settles_at_order_two():
     assert fit[2] - fit[1] > 1.0  # the order below is missing a pole
     d = orders_decision({"oe": fit}, physics_order=2)
     assert d.choice == {"oe": 2} and d.cautions == []
-    assert d.reasons[0].startswith("oe: order 2 — mean simulation FIT") and "levelled off" in d.reasons[0]
+    assert d.reasons == [f"OE: order 2, the smallest within 1 point of the best that counts; order(s) [3, 4] gain less "
+                         "than 1 point over order 2: the FIT has levelled off (the physical model has "
+                         "2 states)."]
 
 
 def test_the_sentence_flips_to_a_caution_when_the_fit_still_rises_at_the_top():
     rising = {4: 39.0, 5: 51.0, 6: 53.5, 7: 56.7}
     assert final_order(rising) == (7, False)
     d = orders_decision({"arx": rising}, {"arx": {4: -5.0, 5: -5.5, 6: -5.6, 7: -5.8}}, physics_order=4)
-    assert d.reasons == [] and d.cautions[0].startswith("arx: order 7 is the largest swept")
+    assert d.reasons == [] and d.cautions[0].startswith("ARX: order 7 is the largest swept")
+    assert "its FIT has not levelled off" in d.cautions[0]
     assert "sweep order 8 (++hydra.sweeper.orders.arx=[4,5,6,7,8])" in d.cautions[0]
     assert "AIC is lowest at order 7" in d.cautions[0]
     levelled = {**rising, 8: 57.2, 9: 57.4}
@@ -49,7 +52,8 @@ def test_an_order_moving_away_from_the_bla_does_not_count():
     assert final_order(fit, bla={4: 0.43, 5: 1.16}) == (4, True)
     d = orders_decision({"oe": fit}, bla={"oe": {4: 0.43, 5: 1.16}})
     assert d.choice == {"oe": 4} and d.cautions == []
-    assert d.reasons[0].startswith("oe: order(s) [5] do not count") and "levelled off" in d.reasons[1]
+    assert d.reasons == ["OE: order 4, the smallest within 1 point of the best that counts; order(s) [5] do not count: "
+                         "their models move away from the best linear approximation (mean distance 4: 0.43, 5: 1.16)."]
     closer = orders_decision({"oe": fit}, bla={"oe": {4: 0.43, 5: 0.40}})  # the numbers flip, so does the text
     assert closer.choice == {"oe": 5} and closer.cautions and not closer.reasons
 
@@ -103,9 +107,10 @@ def test_an_order_whose_added_poles_are_cancelled_stops_the_search_and_the_sente
     assert final_order(fit, cancellations=grows) == (3, True)  # among 2-5: within 1 point of 13.0
     d = orders_decision({"oe": fit}, cancellations={"oe": grows})
     assert d.choice == {"oe": 3} and d.cautions == []
-    assert d.reasons[0] == ("oe: order 6 adds poles its models cancel with zeros: 2.50 near cancellations per model "
-                            "against 1.50 at order 5 (at least 1 more per order added), so the data support no further "
-                            "pole; order 6 and the orders above it ([7]) do not count, whatever FIT they gain.")
+    assert d.reasons == ["OE: order 3, the smallest within 1 point of the best that counts; order 6 adds poles its "
+                         "models cancel with zeros (2.50 near cancellations per model against 1.50 at order 5): order 6 "
+                         "and the orders above it ([7]) do not count, whatever FIT they gain; order(s) [4, 5] gain less "
+                         "than 1 point over order 3: the FIT has levelled off."]
     status = {r["order"]: r["status"] for r in d.evidence}
     assert status == {2: "2.00 points below the best, more than 1", 3: "final",
                       4: "gains +0.20 points over order 3, less than 1", 5: "gains +0.50 points over order 3, less than 1",

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from maglev.lab.records import (alpha_decision, assess, choose_records, length_decision, length_split,
-                                start_transient, switching_rate)
+                                start_transient, switching_rate, verdicts)
 from maglev.lab.signals import random_binary, uniform_noise
 
 TS = 0.001
@@ -69,14 +69,18 @@ def test_a_record_whose_output_leaves_the_curve_is_refused_even_with_the_best_in
                                                                  inside)]
     d = choose_records(a, alpha_star=0.25, wanted={"uniform": 2, "binary": 1})
     assert d.choice == {"uniform": ["wide", "narrow"], "binary": ["bin"]} and not d.forced
-    assert any(r.startswith("wide_leaves is refused: 25.0 % of its output") for r in d.reasons)
-    assert any(r.startswith("wide wins (uniform #1)") for r in d.reasons)
+    verdict = verdicts(d)
+    assert verdict["wide_leaves"].startswith("refused: 25.0 % of its output") and verdict["wide"] == "chosen (uniform #1)"
+    assert d.reasons == ["Of 4 records, 3 chosen, 1 refused and 0 not chosen for a lower score or an α farther from "
+                         "α*: each record's verdict is its row of the table."]
     # the same records with the output back inside: the wide record wins on its score, the narrow one loses
     b = [_record("wide_leaves", "uniform", u_wide, inside)] + a[1:]
     flipped = choose_records(b, alpha_star=0.25)
     assert flipped.choice["uniform"][0] in {"wide_leaves", "wide"} and "narrow" not in flipped.choice["uniform"]
-    assert any(r.startswith("narrow loses") for r in flipped.reasons)
+    assert verdicts(flipped)["narrow"].startswith("not chosen: score")
+    assert flipped.reasons[0].startswith("Of 4 records, 3 chosen, 0 refused and 1 not chosen")
     forced = choose_records(a, alpha_star=0.25, forced=["wide_leaves", "narrow", "bin"])
+    assert verdicts(forced)["wide_leaves"].endswith("; used: forced by the config")
     assert forced.forced and forced.choice["forced"] == ["bin", "narrow", "wide_leaves"]
     assert any("forced by the config although the rule refuses it" in c for c in forced.cautions)
 
@@ -87,7 +91,10 @@ def test_length_decision_cautions_only_when_the_minimum_is_not_met():
     assert length_decision([ok]).cautions == []
     d = length_decision([ok, short])
     assert len(d.cautions) == 1 and d.cautions[0].startswith("b: 8.97 s estimation")
-    assert d.reasons[0].endswith("the lab's minimum is met.") and d.reasons[1].endswith("below the lab's minimum.")
+    assert d.reasons == ["1 of the 2 records hold the lab's 10 s of estimation and 7 s of validation data after their "
+                         "trim; b does not (a caution below)."]
+    assert length_decision([ok]).reasons[-1] == ("Every record holds the lab's 10 s of estimation and 7 s of "
+                                                 "validation data after its trim.")
 
 
 def test_a_trim_set_by_the_config_is_kept_when_it_is_longer_than_the_detected_transient():
@@ -120,11 +127,30 @@ def test_a_record_whose_input_leaves_the_region_is_refused_however_much_of_it_co
     assert wide.score > max(a.score for a in inside)  # the score alone would pick it
     d = choose_records([wide, *inside], wanted={"uniform": 2})
     assert d.choice == {"uniform": ["lower", "narrow"]}
-    assert any(r.startswith("beyond is refused: 20.") and "of its input lies outside the working region" in r
-               for r in d.reasons)
+    assert verdicts(d)["beyond"].startswith("refused: 20.") and "of its input outside the working region" in \
+        verdicts(d)["beyond"]
     # a brief excursion (1 % of the samples just above 3.5 A) stays within the rule: the wide record wins
     brief = np.clip(beyond, 1.5, 3.5)
     brief[::100] = 3.6
     flipped = choose_records([_record("beyond", "uniform", brief, on_curve), *inside], wanted={"uniform": 2})
     assert flipped.choice == {"uniform": ["beyond", "lower"]}
-    assert any(r.startswith("narrow loses") for r in flipped.reasons)
+    assert verdicts(flipped)["narrow"] == f"not chosen: score below lower's {flipped.evidence[1]['score']:.3f}"
+
+
+def test_a_chosen_record_shorter_than_the_labs_minimum_says_why_it_is_chosen_all_the_same():
+    """white_noise_1's case: 15.25 s after its start transient (the lab wants 10 s + 7 s), chosen because only two
+    uniform records pass the rule; with a third passing record scoring below it, the caution gives that score."""
+    from maglev.lab.records import RecordAssessment
+
+    def rec(name, coverage, usable_s):
+        return RecordAssessment(name, "uniform", 1.5, 3.0, 2.25, None, 4.75, usable_s, coverage, 0.125, 0.0, 0.0,
+                                max(0.0, 17.0 - usable_s) / 17.0, True)
+
+    short, other = rec("short", 0.75, 15.25), rec("other", 0.375, 18.5)
+    d = choose_records([short, other], wanted={"uniform": 2})
+    assert d.cautions == ["short: 15.25 s after its 4.75 s start transient, less than the lab's 10 s + 7 s. It is chosen "
+                          "all the same: only 2 uniform record(s) pass the rule, 2 wanted."]
+    third = rec("third", 0.25, 18.5)
+    d = choose_records([short, other, third], wanted={"uniform": 2})
+    assert d.cautions[0].endswith(f"It is chosen all the same: its score, the shortfall counted, is above third's "
+                                  f"{third.score:.3f}.")

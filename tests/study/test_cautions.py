@@ -186,7 +186,7 @@ def test_ranking_and_report_follow_the_residual_tests_both_ways(tmp_path, migrat
     # pass counts for it against the best's failure
     assert "arx[2 2 2] · b fails the independence test (p = 1e-06; the input explains" in page
     assert "oe[2 2 2] · u passes the independence test (p = 0.993; the input explains 98.6 % of the output on " \
-           "u[val], so the test has power)" in page
+           "u's validation data, so the test has power)" in page
     assert "Whiteness: arx[2 2 2] · b passes (p = 0.5), oe[2 2 2] · u passes (p = 0.5)." in page
     assert "leaves more structure" not in page
     text = top_text(r)
@@ -224,6 +224,13 @@ def test_the_report_judges_the_swept_delay_by_the_models_first_b_coefficient(tru
     else:
         assert ("most models find no response at lag 2, so the swept delay is too small for the data "
                 "(delayest: nk = 3)") in text
+        # the same models when the delay decision rejected nk = 3 (its residuals keep the input at lag 2)
+        kept = sections.delay_evidence(models, delayest_nk=3, rejected=[3])
+        assert kept.endswith("most models find no significant response at lag 2, yet the delay decision below "
+                             "rejects nk = 3: a longer delay leaves the input at the lags it skips in the residuals, "
+                             "so the response at lag 2 is small, not absent (delayest, which fits ARX [2 2 nk] only, "
+                             "gives nk = 3).")
+        assert sections.delay_evidence(models, delayest_nk=3, rejected=[1]) == text  # a shorter one: no change
 
 
 @pytest.mark.parametrize("gain, bla5, ending", [

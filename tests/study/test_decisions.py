@@ -106,6 +106,7 @@ def test_the_simulated_sweeps_datasets_are_the_record_rules_choice_from_the_simu
     plant, by the rule's reasons: inside the working region, centred at u*, the output on the static curve, the
     widest such uniform records and the binary record at α*; the record beyond the region and the wider α = 0.25
     binary records are refused.  A ``dataset=`` override is reported forced."""
+    from maglev.lab.records import verdicts
     from maglev.study.decisions import SIM_RECORDS, sim_records
 
     *datasets, other, wr = _sim_sweep("uniform_narrow", "uniform_wide", "binary_a025", "binary_a05")
@@ -120,12 +121,13 @@ def test_the_simulated_sweeps_datasets_are_the_record_rules_choice_from_the_simu
         assert r["usable (s)"] >= 17, name
     assert rows["uniform_wide"]["covers region"] > 0.99
     assert rows["binary_a025"]["α"] == pytest.approx(0.25, abs=0.02)
-    refused = " ".join(x for x in dec.reasons if " is refused: " in x)
-    assert "sim_uniform_1.5-4 is refused" in refused and "of its input lies outside the working region" in refused
-    assert "sim_binary_1.5-3.5_a0.25 is refused" in refused and "sim_binary_1.75-3.25_a0.25 is refused" in refused
+    verdict = verdicts(dec)
+    assert verdict["sim_uniform_1.5-4"].startswith("refused: ") and "of its input outside the working region" in \
+        verdict["sim_uniform_1.5-4"]
+    assert all(verdict[n].startswith("refused: ") for n in ("sim_binary_1.5-3.5_a0.25", "sim_binary_1.75-3.25_a0.25"))
     # the narrower uniform records and binary records at other α lose on their numbers
-    assert any(x.startswith("sim_uniform_1.5-3 loses: score") for x in dec.reasons)
-    assert any(x.startswith("sim_binary_1.5-3.5_a0.5 loses: its α") for x in dec.reasons)
+    assert verdict["sim_uniform_1.5-3"].startswith("not chosen: score")
+    assert verdict["sim_binary_1.5-3.5_a0.5"].startswith("not chosen: its α")
     forced = sim_records([datasets[0], other], wr, "")
     assert forced.forced and forced.choice["forced"] == ["binary_a05", "uniform_narrow"]
     # the rule's choice is the same records; those not in the sweep carry their names in the simulated set
@@ -133,3 +135,4 @@ def test_the_simulated_sweeps_datasets_are_the_record_rules_choice_from_the_simu
                                      "binary": ["sim_binary_2-3_a0.25"]}
     assert forced.reasons[1].startswith("The config forces")
     assert any(c.startswith("binary_a05 is forced by the config although the rule refuses it") for c in forced.cautions)
+    assert verdicts(forced)["binary_a05"].endswith("; used: forced by the config")

@@ -290,7 +290,8 @@ def test_order_at_edge_cautions_are_the_ones_the_logged_fits_support(lab_sweep):
     with open(client.download_artifacts(parent.info.run_id, "lab/decisions.json")) as fh:
         orders = read_decisions(json.load(fh))["orders"]
     assert orders.choice == final and orders.cautions == [] and at_edge == set()
-    assert all(f"{st}: order {o} — mean simulation FIT" in " ".join(orders.reasons) for st, o in final.items())
+    assert all(f"{st.upper()}: order {o}, the smallest within 1 point of the best" in " ".join(orders.reasons)
+               for st, o in final.items())
 
 
 def test_the_recommended_models_are_at_the_settled_orders(lab_sweep):
@@ -311,7 +312,8 @@ def test_the_recommended_models_are_at_the_settled_orders(lab_sweep):
     assert f"For simulation (the output from the input alone) use {sim.info.run_name}: " in conclusion
     assert f"For one-step prediction use {pred.info.run_name}: " in conclusion
     head = conclusion.split("For simulation")[0]
-    assert "The model to use is chosen among the orders the orders rule settled on (§5: " in head
+    assert "The model to use is chosen among the orders the orders rule chose, where each structure's FIT levels off " \
+           "(§5: " in head
     assert all(f"{st.upper()} {o}" in head for st, o in final.items())
     higher = max(runs, key=lambda r: r.data.metrics["val_fit_sim"])
     if higher is not sim and higher.data.metrics["val_fit_sim"] > sim.data.metrics["val_fit_sim"]:

@@ -4,6 +4,7 @@ without power (maglev.study.report.verdicts, and the sections that print them)."
 
 from __future__ import annotations
 
+import html as html_module
 import math
 from types import SimpleNamespace
 
@@ -119,10 +120,10 @@ def test_an_independence_test_on_an_unexplained_record_is_without_power_not_a_pa
     bw = v.best_vs_worst(best, worst)
     check, side, sentence = next(c for c in bw.checks if c[0] == "independence")
     assert side is None  # a pass without power is no evidence for the worst
-    assert ("the independence test of W (p = 0.996) is without power: on a[val] the input explains nothing of the "
-            "output (less than 5%") in sentence and "not a pass in its favour" in sentence
-    assert "B fails the independence test (p = 1e-05; the input explains 51.0 % of the output on b[val], so the " \
-           "test has power)" in sentence
+    assert ("the independence test of W (p = 0.996) is without power: on a's validation data the input explains "
+            "nothing of the output (less than 5%") in sentence and "not a pass in its favour" in sentence
+    assert "B fails the independence test (p = 1e-05; the input explains 51.0 % of the output on b's validation " \
+           "data, so the test has power)" in sentence
     # the same pass where the input explains 6 % of the output counts for the worst
     worst6 = facts("W", explained=0.06, independent=True, independence_p=0.996)
     assert next(c for c in v.best_vs_worst(best, worst6).checks if c[0] == "independence")[1] == "worst"
@@ -149,12 +150,16 @@ def test_the_best_vs_worst_section_reports_the_unpowered_test_from_the_models():
                      "val_fit": compare(val, m, 1)[0], "val_fit_sim": compare(val, m, math.inf)[0],
                      "val_fit_naive": 0.0, "dcgain": m.dcgain()})
     table = pd.DataFrame(rows)
-    ranking = SimpleNamespace(best=table.iloc[0], worst=table.iloc[1], table=table, resids=resids, files={})
+    ranking = SimpleNamespace(best=table.iloc[0], worst=table.iloc[1], table=table, resids=resids, files={},
+                              orders=None)
     html = best_vs_worst(ranking, models, {"lab.slope": 0.8})
     assert resids["run-noise"].independent  # it passes ...
     assert "the independence test of arx noise" in html and "is without power" in html  # ... without power
     assert "arx good passes the independence test" in html and "so the test has power" in html
     assert "better model of the plant" in html
+    assert ("The lab's best and worst model in terms of FIT (§3.7) are the #1 and the #2 of the one-step ranking "
+            "(§6). The #1 is also the model the conclusion recommends for simulation and one-step prediction (§9).") \
+        in html_module.unescape(html)
 
 
 def test_conclusion_names_the_model_for_simulation_and_for_prediction_and_changes_with_the_numbers():
@@ -207,13 +212,15 @@ def test_a_higher_scoring_model_of_an_order_the_rule_does_not_choose_is_named_bu
     assert orders.choice == {"bj": 4, "oe": 4}
     c = v.conclusion(table, orders=orders)
     assert (c.simulation, c.prediction) == ("oe4 bin", "bj4 bin")
-    assert c.sentences[0] == ("The model to use is chosen among the orders the orders rule settled on (§5: BJ 4, OE 4): "
-                              "4 of the 8 models.")
+    assert c.sentences[0] == ("The model to use is chosen among the orders the orders rule chose, where each "
+                              "structure's FIT levels off (§5: BJ 4, OE 4): 4 of the 8 models.")
     text = " ".join(c.sentences)
-    assert ("oe5 bin simulates higher, at 41.40 % (+0.10 points), but is not recommended: its order 5 is not OE's "
-            "final order 4 (its models move away from the best linear approximation) — by the orders rule (§5).") in text
+    assert ("oe5 bin simulates higher, at 41.40 % (+0.10 points), but is not recommended: its order 5 is not the order "
+            "4 the orders rule chose for OE (its models move away from the best linear approximation; §5).") in text
     assert ("The #1 by one-step FIT, bj5 bin (98.60 %, +0.10 points over bj4 bin), is not recommended: its order 5 is "
-            "not BJ's final order 4 (its models move away from the best linear approximation)") in text
+            "not the order 4 the orders rule chose for BJ (its models move away from the best linear approximation; "
+            "§5)") in text
+    assert "final order" not in text and "settled" not in text
     # the numbers flip: OE's order 5 comes closer to the BLA and gains more than 1 point, so the rule settles OE at
     # 5 (not settled: the largest swept) and its model is recommended, with no sentence against it
     closer = {"bj": away["bj"], "oe": {4: 0.40, 5: 0.30}}
@@ -221,9 +228,40 @@ def test_a_higher_scoring_model_of_an_order_the_rule_does_not_choose_is_named_bu
     assert orders.choice == {"bj": 4, "oe": 5}
     c = v.conclusion(table, orders=orders)
     assert c.simulation == "oe5 bin" and "simulates higher" not in " ".join(c.sentences)
-    assert "OE 5 (not settled: the largest swept)" in c.sentences[0]
-    assert c.sentences[0].startswith("The model to use is chosen among the final orders of the orders rule, not all "
-                                     "of them settled")
+    assert "OE 5 (the largest swept, its FIT still rising)" in c.sentences[0]
+    assert c.sentences[0].startswith("The model to use is chosen among the orders the orders rule chose, not all of "
+                                     "them where the FIT levels off")
+
+
+def test_best_vs_worst_says_whether_the_first_is_the_recommended_model_and_why_not():
+    """The lab's best and worst are the ends of the FIT ranking; the sentence ties them to the lab's question and
+    says, from the numbers, whether the #1 is a model the conclusion recommends, and why not when it is not: its
+    order (not the rule's), or a one-step FIT no better than y(t−1)'s at the rule's order."""
+    rows = [("bj4 bin", "bj", 4, "bin", 98.5, 80.0, 41.2), ("bj5 bin", "bj", 5, "bin", 98.6, 80.0, 41.3),
+            ("bj4 uni", "bj", 4, "uni", 92.0, 84.0, 26.0), ("bj5 uni", "bj", 5, "uni", 92.1, 84.0, 25.5),
+            ("oe4 bin", "oe", 4, "bin", 41.3, 80.0, 41.3), ("oe5 bin", "oe", 5, "bin", 41.4, 80.0, 41.4),
+            ("oe4 uni", "oe", 4, "uni", 17.0, 84.0, 17.0), ("oe5 uni", "oe", 5, "uni", 19.5, 84.0, 19.5)]
+    away = {"bj": {4: 0.13, 5: 0.20}, "oe": {4: 0.40, 5: 0.50}}
+
+    def said(rows_):
+        table, orders = ranked_orders(rows_, away)
+        return v.extremes_text(table.iloc[0], table.iloc[-1], v.conclusion(table, orders=orders), orders)
+
+    text = said(rows)
+    assert text == ("The lab's best and worst model in terms of FIT (§3.7) are the #1 and the #8 of the one-step "
+                    "ranking (§6). The #1 is not the model this report recommends (§9: oe4 bin for simulation, bj4 bin "
+                    "for one-step prediction): its order 5 is not the order 4 the orders rule chose for BJ (its models "
+                    "move away from the best linear approximation; §5). Both are named: the #1 answers the lab's "
+                    "question, the recommended model is the one to use.")
+    # without BJ's order 5 the #1 is bj4 bin, the model recommended one step ahead
+    at_rule = [r for r in rows if r[0] != "bj5 bin"]
+    assert said(at_rule).endswith(" The #1 is also the model the conclusion recommends for one-step prediction (§9).")
+    # the same #1 whose one-step FIT y(t−1) nearly matches on its record: no model is recommended for prediction
+    naive = [(n, s_, o, d, f, 98.0 if d == "bin" else nv, sim) for n, s_, o, d, f, nv, sim in at_rule]
+    assert said(naive).endswith("(§9: oe4 bin for simulation, y(t−1) itself for one-step prediction): one step ahead "
+                                "it adds +0.50 points to the naive predictor y(t−1), less than 1, and oe4 bin "
+                                "simulates better. Both are named: the #1 answers the lab's question, the recommended "
+                                "model is the one to use.")
 
 
 @pytest.mark.parametrize("wn, zeta", [(80.0, 0.13), (220.0, 0.05), (30.0, 0.9)])
@@ -243,25 +281,36 @@ def test_explained_share_is_the_variance_a_simulation_fit_accounts_for():
 
 
 def test_a_logged_lab_decision_is_printed_in_its_section_with_rule_choice_and_evidence():
-    """The decisions the sweep logs (lab/decisions.json, maglev.lab.decision) appear in their §5 sections: rule,
-    choice and reasons there; a short evidence table there too, a long one in Appendix E."""
+    """The decisions the sweep logs (lab/decisions.json, maglev.lab.decision) appear in their §5 sections: the choice
+    in words, rule and reasons there; a short evidence table there too, a long one in Appendix E; the records
+    decision keeps one row per record with its verdict in its section."""
     from maglev.lab.decision import Decision
     from maglev.study.report.sections import EVIDENCE_ROWS, decision, decisions_evidence
 
-    short = Decision(name="delay", rule="largest nk whose residuals stay white", choice={"nk": 2, "Ts": 0.002},
+    short = Decision(name="delay", rule="largest nk whose residuals stay white.", choice={"nk": 2, "Ts": 0.002},
                      evidence=[{"nk": k, "outside": 0.5 * k} for k in range(1, 4)], reasons=["nk = 3 fails <x>"])
     long = Decision(name="records", rule="inside the region", choice={"uniform": ["a", "b"], "binary": ["c"]},
                     evidence=[{"record": f"r{i}", "inside": i % 2 == 0} for i in range(EVIDENCE_ROWS + 3)])
     decisions = {"delay": short, "records": long}
     html = decision(decisions, "delay")
-    assert "rule: largest nk whose residuals stay white; choice: nk: 2, Ts: 0.002" in html
+    assert ("<b>Decision on the delay: an input delay of nk = 2 samples = 4 ms.</b> Rule: largest nk whose residuals "
+            "stay white.") in html
     assert "why: nk = 3 fails &lt;x&gt;" in html and html.count("<tr>") == 4  # header + 3 evidence rows
     html = decision(decisions, "records")
-    assert "choice: uniform: a, b, binary: c" in html and f"evidence: {EVIDENCE_ROWS + 3} rows, Appendix E" in html
-    assert "<tr>" not in html
+    assert ("<b>Decision on the records: uniform white-noise records a and b; random binary record c.</b>" in html
+            and f"evidence: {EVIDENCE_ROWS + 3} rows, Appendix E" in html)
+    assert "<tr>" not in html and "uniform:" not in html
     appendix = decisions_evidence(decisions)
-    assert "<h3>records</h3>" in appendix and appendix.count("<tr>") == EVIDENCE_ROWS + 4 and "<h3>delay" not in appendix
+    assert "<h3>Decision on the records</h3>" in appendix and appendix.count("<tr>") == EVIDENCE_ROWS + 4
+    assert "Decision on the delay" not in appendix
     assert decision(decisions, "orders") == "" and decision({}, "delay") == ""
+    # a records decision whose evidence has verdicts: every record's row, cut to the summary columns, stays here
+    rows = [{"record": f"r{i}", "class": "uniform", "u range (A)": "1.5–3.5", "mean u (A)": 2.5, "α": None,
+             "score": 0.5 - i / 10, "verdict": "chosen (uniform #1)" if i == 0 else f"refused: reason {i}"}
+            for i in range(EVIDENCE_ROWS + 3)]
+    html = decision({"records": Decision("records", "r", {"uniform": ["r0"]}, rows)}, "records")
+    assert html.count("<tr>") == EVIDENCE_ROWS + 4 and "<td>refused: reason 6</td>" in html
+    assert "mean u (A)" not in html and "(the table below; all its evidence in Appendix E)" in html
 
 
 def _input_section(u_wide: np.ndarray, forced: bool) -> str:
@@ -342,15 +391,25 @@ def test_the_top_four_carry_their_residual_tests_and_how_many_fail_each():
 
 @pytest.mark.parametrize("alpha, forced, expected", [
     (0.2511, False, "α = 0.25 = α*, the α whose spectrum puts most power in the output's band"),
-    (0.4969, False, "<b>α = 0.50, not α* = 0.25</b>; no binary record with α nearer α* passes the records rule"),
+    (0.4969, False, "<b>α = 0.50, not α* = 0.25</b>; no binary record with α nearer α* passes the records rule "
+                    "(the table below)"),
     (0.4969, True, "<b>α = 0.50, not α* = 0.25</b>; the config forces this record"),
 ])
 def test_the_binary_records_alpha_is_set_against_alpha_star_and_the_report_says_why_it_differs(alpha, forced,
                                                                                                expected):
     from maglev.study.report.sections import alpha_text, binary_alpha
 
-    records = SimpleNamespace(forced=forced)
+    records = SimpleNamespace(forced=forced, evidence=[])
     assert alpha_text(alpha, 0.25, records).startswith(expected)
+    # the records at α* the rule refuses are named, from the verdicts of its evidence rows
+    refused = [{"record": f"b{i}", "class": "binary", "α": a, "verdict": v} for i, (a, v) in
+               enumerate(((0.251, "refused: 13.2 % of its output outside"), (0.252, "refused: constant input"),
+                          (0.27, "refused: 20 % of its input outside"), (0.4969, "chosen (binary #1)")))]
+    said = alpha_text(alpha, 0.25, SimpleNamespace(forced=forced, evidence=refused))
+    if alpha > 0.3 and not forced:
+        assert said.endswith("; the records rule refuses the binary records at α*, b0, b1 (the table below)")
+        assert alpha_text(alpha, 0.25, SimpleNamespace(forced=False, evidence=refused[:1])).endswith(
+            "refuses the binary record at α*, b0 (the table below)")
     # the α measured by the alpha decision wins over the config's design value; a real record's config has none
     decisions = {"alpha": SimpleNamespace(choice={"real_binary_signal_4": alpha})}
     assert binary_alpha("real_binary_signal_4", {"alpha": None}, decisions) == alpha

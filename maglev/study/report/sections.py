@@ -17,10 +17,11 @@ import pandas as pd
 
 from maglev.lab.records import ALPHA_TOLERANCE, EST_MIN_S, INPUT_OUTSIDE_MAX, VAL_MIN_S, share_outside
 from maglev.model import CANCEL_TOL, PolyModel
-from maglev.plots import U_UNIT, Y_UNIT
 from maglev.structures import get as get_structure
 from maglev.study.cautions import ORDER_MARGIN, order_choice
 from maglev.study.ranking import validation_note
+from maglev.study.report.verdicts import validation_data
+from maglev.units import U_UNIT, Y_UNIT
 from maglev.validation import TEST_LEVEL, format_p
 
 
@@ -75,23 +76,31 @@ def bullets(items: Iterable[str]) -> str:
 
 
 EVIDENCE_ROWS = 4  # a decision's evidence table stays in its section up to this many rows, else goes to Appendix E
+# the columns of a long evidence table its section prints whatever its length (one row per record: its verdict)
+SUMMARY_COLUMNS = {"records": ("record", "class", "u range (A)", "α", "score", "verdict")}
 
 
 def decision(decisions: dict | None, name: str) -> str:
-    """A lab decision the sweep logged (``lab/decisions.json``, :class:`maglev.lab.decision.Decision`): its rule,
-    choice, reasons and cautions, with its evidence table when it is short (Appendix E holds the long ones);
-    "" when the sweep logged none of that name."""
+    """A lab decision the sweep logged (``lab/decisions.json``, :class:`maglev.lab.decision.Decision`): its choice in
+    words, its rule, reasons and cautions, with its evidence table when it is short (Appendix E holds the long ones;
+    of those, the :data:`SUMMARY_COLUMNS` of every row stay in the section); "" when the sweep logged none of that
+    name."""
     d = (decisions or {}).get(name)
     if d is None:
         return ""
     rows = d.rows()
-    text = "; ".join(f"{label}: {value}" for label, value in rows if label in ("rule", "choice"))
+    rule, choice = (next(v for label, v in rows if label == key) for key in ("rule", "choice"))
     extra = [f"{label}: {value}" for label, value in rows if label not in ("rule", "choice")]
     header, cells = d.table_rows()
     short = 0 < len(cells) <= EVIDENCE_ROWS
-    return (para(f"<b>Decision {esc(name)}</b> — {text}"
-                 + ("" if short or not cells else f" (evidence: {len(cells)} rows, Appendix E)") + ".")
-            + (bullets(extra) if extra else "") + (evidence_table(header, cells) if short else ""))
+    keep = [header.index(c) for c in SUMMARY_COLUMNS.get(name, ()) if c in header]
+    summary = not short and len(keep) == len(SUMMARY_COLUMNS.get(name, ())) > 0
+    where = "" if short or not cells else (" (the table below; all its evidence in Appendix E)" if summary else
+                                           f" (evidence: {len(cells)} rows, Appendix E)")
+    table_ = (evidence_table(header, cells) if short else
+              evidence_table([header[i] for i in keep], [[r[i] for i in keep] for r in cells]) if summary else "")
+    return para(f"<b>Decision on the {esc(d.title)}: {choice}.</b> Rule: {rule.rstrip('.')}{where}.") + (
+        bullets(extra) if extra else "") + table_
 
 
 def evidence_table(header: list[str], cells: list[list[str]]) -> str:
@@ -103,10 +112,10 @@ def evidence_table(header: list[str], cells: list[list[str]]) -> str:
 def decisions_evidence(decisions: dict | None) -> str:
     """Appendix E: the evidence of every decision too long to print in its section."""
     parts = []
-    for name, d in (decisions or {}).items():
+    for d in (decisions or {}).values():
         header, cells = d.table_rows()
         if len(cells) > EVIDENCE_ROWS:
-            parts.append(f"<h3>{esc(name)}</h3>" + evidence_table(header, cells))
+            parts.append(f"<h3>Decision on the {esc(d.title)}</h3>" + evidence_table(header, cells))
     return section("decisions-evidence", "E. Evidence of the lab decisions", *parts) if parts else ""
 
 
@@ -123,7 +132,8 @@ def working_region(lab: dict, lab_png: dict, ts_used: list[float], decisions: di
         return section("working-region", title,
                        para("The sweep's parent run has no lab-level steps (lab.enabled=false or they failed)."))
     g = lab.get
-    text = (f"A staircase of {esc(lab.get('staircase', 'staircase'))} steps the input over the plant's [0, 10] A; "
+    text = (f"The staircase record ({esc(lab.get('staircase', 'staircase'))}) steps the input over the plant's "
+            "[0, 10] A; "
             f"getStationaryAverages (Appendix A) averages the last part of each step's response, after its "
             f"transient. The working region is the widest range of levels on which ȳ against ū stays on a "
             f"straight line and off the saturation plateau (every level near the least-squares line, every "
@@ -203,14 +213,23 @@ def binary_alpha(name: str, ds: dict, decisions: dict | None) -> float | None:
 
 def alpha_text(alpha: float, alpha_star: float, records=None) -> str:
     """A binary record's α against α* (within the alpha decision's tolerance), and why it is not α* when it is not:
-    the records rule's choice (no binary record nearer α* passes it) or the config's (``records``: the records
-    decision, None when the sweep logged none)."""
+    the records rule's choice (no binary record nearer α* passes it: the records at α* it refuses are named, from
+    its evidence rows' verdicts) or the config's (``records``: the records decision, None when the sweep logged
+    none)."""
     if not math.isfinite(alpha_star):
         return f"α = {num(alpha)}"
     if abs(alpha - alpha_star) <= ALPHA_TOLERANCE:
         return f"α = {num(alpha)} = α*, the α whose spectrum puts most power in the output's band"
-    why = ("" if records is None else "; the config forces this record" if records.forced else
-           "; no binary record with α nearer α* passes the records rule (its reasons below)")
+    if records is None:
+        why = ""
+    elif records.forced:
+        why = "; the config forces this record"
+    else:
+        at_star = [str(r["record"]) for r in records.evidence if r.get("class") == "binary" and r.get("α") is not None
+                   and abs(r["α"] - alpha_star) <= ALPHA_TOLERANCE and str(r.get("verdict", "")).startswith("refused")]
+        why = (f"; the records rule refuses the binary record{'s' if len(at_star) > 1 else ''} at α*, "
+               + ", ".join(at_star) + " (the table below)" if at_star else
+               "; no binary record with α nearer α* passes the records rule (the table below)")
     return f"<b>α = {num(alpha)}, not α* = {num(alpha_star)}</b>{why}"
 
 
@@ -231,9 +250,11 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict, decisions:
                 f"the others'. Units: u is the coil current command in {U_UNIT}, y the upper magnet's height in "
                 f"{Y_UNIT}.")
     return section("data", "4. Amount of data", text, table(pd.DataFrame(rows)), decision(decisions, "data_length"))
-def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) -> str:
+def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None, rejected: Sequence[int] = ()) -> str:
     """Whether the identified models support their delay: how many have a first B coefficient b_nk more than
-    two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given."""
+    two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given.  When most
+    do not, but the delay decision ``rejected`` the longer delays (the nk its rule refuses: a longer delay leaves the
+    input at the skipped lags in the residuals), the sentence says the response at lag nk is small, not absent."""
     z = []
     for m in models:
         se = m.std_errors
@@ -256,8 +277,16 @@ def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None) 
         text += (f"; delayest's nk = {delayest_nk} (from ARX [2 2 nk]) would leave that coefficient out." if later
                  else ".")
     else:
-        text += (f"most models find no response at lag {shown}, so the swept delay is too small for the data"
-                 + (f" (delayest: nk = {delayest_nk})." if delayest_nk is not None else "."))
+        longer = sorted(k for k in rejected if k > max(nks))
+        if longer:
+            text += (f"most models find no significant response at lag {shown}, yet the delay decision below rejects "
+                     f"nk = {', '.join(map(str, longer))}: a longer delay leaves the input at the lags it skips in the "
+                     f"residuals, so the response at lag {shown} is small, not absent"
+                     + (f" (delayest, which fits ARX [2 2 nk] only, gives nk = {delayest_nk})." if delayest_nk
+                        is not None else "."))
+        else:
+            text += (f"most models find no response at lag {shown}, so the swept delay is too small for the data"
+                     + (f" (delayest: nk = {delayest_nk})." if delayest_nk is not None else "."))
     return text
 
 
@@ -329,7 +358,10 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
             f"selection (arxstruc, na and nb in 1…{int(lab['lab.max_order'])}) picks na = {int(lab['lab.arx_na'])}, "
             f"nb = {int(lab['lab.arx_nb'])} by AIC and na = {int(lab['lab.arx_na_mdl'])}, nb = "
             f"{int(lab['lab.arx_nb_mdl'])} by MDL (Figure in Appendix D)."))
-    delay = delay_evidence([models[i] for i in table_["run_id"]], int(lab["lab.nk"]) if "lab.nk" in lab else None)
+    delay_rule = (decisions or {}).get("delay")
+    rejected = [int(r["nk"]) for r in delay_rule.evidence if r.get("rejected")] if delay_rule is not None else []
+    delay = delay_evidence([models[i] for i in table_["run_id"]], int(lab["lab.nk"]) if "lab.nk" in lab else None,
+                           rejected)
     if delay:
         parts.append(para(delay))
     lines = []
@@ -351,11 +383,11 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
         if n_cancel:
             at_final = sum(len(models[i].near_cancellations(tol)) for i in final["run_id"])
             text += (f" {n_cancel} near pole-zero cancellation(s) (|p−z| &lt; {tol}) among its models"
-                     + (f", {at_final} of them at order {int(final['order'].iloc[0])}" if len(final) else "")
-                     + ": each a pole the data may not support; the orders decision stops where they grow by one "
-                       "per model and order.")
+                     + (f", {at_final} of them at order {int(final['order'].iloc[0])}." if len(final) else "."))
         lines.append(text)
-    parts += [bullets(lines), table(order_summary(table_, models, tol)), decision(decisions, "orders"),
+    note = para("A near cancellation is a pole the data may not support: the orders rule stops where they grow by "
+                "one per model and order.") if any("near pole-zero cancellation" in t for t in lines) else ""
+    parts += [bullets(lines), note, table(order_summary(table_, models, tol)), decision(decisions, "orders"),
               decision(decisions, "delay")]
     return section("structures", "5. Model structures and orders", *parts)
 
@@ -367,13 +399,15 @@ def top_four(ranking) -> str:
     text = para(f"{len(ranking.table)} models ranked by one-step-ahead FIT on validation data (the lab's eq. 5; ties "
                 "to fewer parameters)"
                 + (", ignored: " + ", ".join(f"{n} {s}" for s, n in sorted(ranking.sweep.ignored.items()))
-                   if ranking.sweep.ignored else "") + ". Beside each: y(t−1)'s FIT on the same data (val_fit_naive: "
-                "a model must beat it to add anything) and the simulation FIT (val_fit_sim: G alone).")
+                   if ranking.sweep.ignored else "") + ". Beside each: the one-step FIT of the naive predictor "
+                "ŷ(t) = y(t−1) on the same data (a model must beat it to add anything) and the simulation FIT (the "
+                "output from the input alone: G without the noise model).")
     from maglev.lab.orders import statuses
 
     status = statuses(ranking.orders)
-    lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on {esc(r['val_dataset'])} "
-             f"(y(t−1): {num(r['val_fit_naive'])} %, simulation: {num(r['val_fit_sim'])} %), "
+    lines = [f"#{int(r['rank'])} <b>{esc(r['name'])}</b>: FIT {num(r['val_fit'])} % on "
+             f"{esc(validation_data(r['val_dataset']))} (y(t−1): {num(r['val_fit_naive'])} %, simulation: "
+             f"{num(r['val_fit_sim'])} %), "
              f"{r['n_params']} parameters; " + esc(order_place(r, status)) + esc(residual_text(r))
              for _, r in ranking.top.iterrows()]
     return section("top4", "6. Top four models", text, bullets(lines), para(esc(residual_summary(ranking.top))),
@@ -382,13 +416,14 @@ def top_four(ranking) -> str:
 
 
 def order_place(row: pd.Series, status: dict[tuple[str, int], str]) -> str:
-    """A ranked run's order against its structure's final order (column ``final_order``, the orders decision's
-    ``status`` by (structure, order))."""
+    """A ranked run's order against the order the orders rule chose for its structure (column ``final_order``, the
+    orders decision's ``status`` by (structure, order))."""
     st, o = str(row["structure"]), int(row["order"])
     if row["final_order"]:
-        return f"order {o}, {st.upper()}'s final order" if (st, o) in status else f"order {o}, the one swept"
+        return (f"order {o}, the one the orders rule chose for {st.upper()}" if (st, o) in status else
+                f"order {o}, the one swept")
     why = status.get((st, o))
-    return f"order {o}, not {st.upper()}'s final order" + (f": {why}" if why else "")
+    return f"order {o}, not the one the orders rule chose for {st.upper()}" + (f": {why}" if why else "")
 
 
 def residual_text(row: pd.Series) -> str:
@@ -412,15 +447,16 @@ def residual_summary(top: pd.DataFrame) -> str:
 
 
 def final_orders_text(ranking) -> str:
-    """How many of the top four are at their structure's final order, and the best-ranked run that is."""
+    """How many of the top four are at the order the orders rule chose for their structure, and the best-ranked run
+    that is."""
     top, table = ranking.top, ranking.table
     k = int(top["final_order"].sum())
     if k == len(top):
-        return f"All {len(top)} are at their structure's final order (§5)."
+        return f"All {len(top)} are at the order the orders rule chose for their structure (§5)."
     first = table[table["final_order"].astype(bool)].iloc[0]
-    return (f"{k} of the top {len(top)} are at their structure's final order (§5); the other {len(top) - k} are at "
-            f"orders the orders rule does not choose: ranked here, not recommended (§9). The best-ranked model at a "
-            f"final order is #{int(first['rank'])} {first['name']} (FIT {num(first['val_fit'])} %).")
+    return (f"{k} of the top {len(top)} are at the order the orders rule chose for their structure (§5); the other "
+            f"{len(top) - k} are at orders it does not choose: ranked here, not recommended (§9). The best-ranked model "
+            f"at a chosen order is #{int(first['rank'])} {first['name']} (FIT {num(first['val_fit'])} %).")
 
 
 def binary_vs_uniform(ranking, lab: dict) -> str:
@@ -432,7 +468,7 @@ def binary_vs_uniform(ranking, lab: dict) -> str:
         return section("binary-vs-uniform", title, para(esc("; ".join(ranking.notes))))
     comp, st = ranking.comparison, ranking.structure
     parts = [para(f"Structure <b>{esc(st.upper())}</b> (the best-fitting structure with models of both input "
-                  "classes). Each record is represented by its model at the structure's final order (§5) with the "
+                  "classes). Each record is represented by its model at the order the orders rule chose (§5) with the "
                   "highest FIT on its own validation data, and every model is evaluated on every record's validation "
                   "data (rows: estimated on, columns: validated on; one-step FIT %):")]
     if ranking.common is None:
@@ -485,9 +521,10 @@ def best_vs_worst(ranking, models_all: dict, lab: dict, physics_modes: list | No
     slope = lab.get("lab.slope")
     bw = v.best_vs_worst(fb, fw, slope)
     refs = references or {}
-    head = (f"Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on {esc(b['val_dataset'])}); "
-            f"worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT {num(w['val_fit'])} % on "
-            f"{esc(w['val_dataset'])}).")
+    question = v.extremes_text(b, w, v.conclusion(ranking.table, slope, ranking.orders), ranking.orders)
+    head = (f"{esc(question)} Best <b>{esc(b['name'])}</b> (rank 1, FIT {num(b['val_fit'])} % on "
+            f"{esc(validation_data(b['val_dataset']))}); worst <b>{esc(w['name'])}</b> (rank {int(w['rank'])}, FIT "
+            f"{num(w['val_fit'])} % on {esc(validation_data(w['val_dataset']))}).")
     tally = bw.tally
     better = fb if bw.better == "best" else fw
     verdict = (f"<b>Why one is better:</b> of the checks below, {tally['best']} favour the best model by one-step "

@@ -31,6 +31,12 @@ WORKING_POINT_SHARE = 0.10  # mean input this far from u* (share of the working 
 MODE_RATIO = 2.0  # a model's mode within this factor of a physical mode's natural frequency is that mode
 
 
+def validation_data(val_dataset: str) -> str:
+    """A ranked run's validation set in words: ``name[val]`` (the ranking's label) is name's validation data."""
+    name = str(val_dataset)
+    return f"{name.removesuffix('[val]')}'s validation data" if name.endswith("[val]") else name
+
+
 def explained_share(fit_sim: float) -> float:
     """Share of the output variance a simulation with FIT ``fit_sim`` % explains: 1 − (1 − FIT/100)², at least 0
     (FIT = 100 (1 − ‖y − ŷ‖/‖y − ȳ‖), so ‖y − ŷ‖²/‖y − ȳ‖² = (1 − FIT/100)²)."""
@@ -240,12 +246,12 @@ def independence_text(f: ModelFacts) -> str:
     p = format_p(f.independence_p)
     if not f.power:
         share = "nothing" if f.explained <= 0 else f"{100 * f.explained:.1f} %"
-        return (f"the independence test of {f.name} (p = {p}) is without power: on {f.val_dataset} the input "
-                f"explains {share} of the output (less than {EXPLAINED_MIN:.0%}; the best simulation of any model "
+        return (f"the independence test of {f.name} (p = {p}) is without power: on {validation_data(f.val_dataset)} "
+                f"the input explains {share} of the output (less than {EXPLAINED_MIN:.0%}; the best simulation of any model "
                 "there), so the residuals of any G, even G = 0, are uncorrelated with the input — not a pass in its "
                 "favour")
     return (f"{f.name} {'passes' if f.independent else 'fails'} the independence test (p = {p}; the input explains "
-            f"{100 * f.explained:.1f} % of the output on {f.val_dataset}, so the test has power)")
+            f"{100 * f.explained:.1f} % of the output on {validation_data(f.val_dataset)}, so the test has power)")
 
 
 @dataclass
@@ -356,25 +362,26 @@ def _orders_rule(table: pd.DataFrame, orders) -> tuple[str, str]:
                 f"all {total} models.", "the")
     status = statuses(orders)
     unsettled = [st for st, o in choice.items() if status.get((st, o)) == "final, not settled"]
-    listed = ", ".join(f"{st.upper()} {o}" + (" (not settled: the largest swept)" if st in unsettled else "")
+    listed = ", ".join(f"{st.upper()} {o}" + (" (the largest swept, its FIT still rising)" if st in unsettled else "")
                        for st, o in choice.items())
     single = [st for st in dict.fromkeys(table["structure"]) if st not in choice]
     if single:
         listed += "; " + ", ".join(f"{st.upper()} its one swept order" for st in single)
-    head = ("the orders the orders rule settled on" if not unsettled
-            else "the final orders of the orders rule, not all of them settled")
+    head = ("the orders the orders rule chose, where each structure's FIT levels off" if not unsettled
+            else "the orders the orders rule chose, not all of them where the FIT levels off")
     return f"The model to use is chosen among {head} (§5: {listed}): {n} of the {total} models.", "those"
 
 
 def _not_final(row: pd.Series, orders) -> str:
-    """Why a run's order is not its structure's final order, from the orders decision's status of that order."""
+    """Why a run's order is not the one the orders rule chose for its structure, from the orders decision's status
+    of that order."""
     from maglev.lab.orders import statuses
 
     st, o = str(row["structure"]), int(row["order"])
     why = statuses(orders).get((st, o))
     final = orders.choice.get(st) if orders is not None else None
-    return (f"its order {o} is not {st.upper()}'s final order {final}" + (f" ({why})" if why else "")
-            + " — by the orders rule (§5)")
+    return f"its order {o} is not the order {final} the orders rule chose for {st.upper()}" + (
+        f" ({why}; §5)" if why else " (§5)")
 
 
 def residual_caveat(row: pd.Series, purpose: str) -> str:
@@ -410,7 +417,7 @@ def conclusion(table: pd.DataFrame, slope: float | None = None, orders=None) -> 
     top = pool.iloc[0]
     gain = _points(top["val_fit"], top["val_fit_naive"]) if "val_fit_naive" in pool else math.inf
     lines = [rule, f"For simulation (the output from the input alone) use {sim['name']}: it simulates "
-             f"{sim['val_dataset']}'s validation data at FIT {sim['val_fit_sim']:.2f} %, the highest of {those} "
+             f"{validation_data(sim['val_dataset'])} at FIT {sim['val_fit_sim']:.2f} %, the highest of {those} "
              f"{len(pool)} models (#{int(sim['rank'])} by one-step FIT)."]
     if "dcgain" in pool and slope and math.isfinite(slope):
         lines[-1] += (f" Its static gain {sim['dcgain']:.3f} cm/A is {100 * (sim['dcgain'] / slope - 1):+.0f} % from "
@@ -421,7 +428,7 @@ def conclusion(table: pd.DataFrame, slope: float | None = None, orders=None) -> 
             alt = matching.loc[matching["val_fit_sim"].idxmax()]
             lines.append(f"Where the static response matters, {alt['name']} is the better choice: its static gain "
                          f"{alt['dcgain']:.3f} cm/A is within {GAIN_TOL:.0%} of the slope, and it simulates "
-                         f"{alt['val_dataset']} at {alt['val_fit_sim']:.2f} %.")
+                         f"{validation_data(alt['val_dataset'])} at {alt['val_fit_sim']:.2f} %.")
     higher = table.loc[table["val_fit_sim"].idxmax()]
     if not higher["final_order"] and higher["val_fit_sim"] > sim["val_fit_sim"]:
         lines.append(f"{higher['name']} simulates higher, at {higher['val_fit_sim']:.2f} % "
@@ -439,7 +446,8 @@ def conclusion(table: pd.DataFrame, slope: float | None = None, orders=None) -> 
     if gain >= NAIVE_MARGIN:
         prediction = str(top["name"])
         lines.append(f"For one-step prediction use {top['name']}: FIT {top['val_fit']:.2f} % on "
-                     f"{top['val_dataset']}, {gain:+.2f} points above y(t−1)'s {top['val_fit_naive']:.2f} %.")
+                     f"{validation_data(top['val_dataset'])}, {gain:+.2f} points above the "
+                     f"{top['val_fit_naive']:.2f} % of the naive predictor y(t−1).")
         if prediction == sim["name"]:
             lines.append("One model serves both purposes.")
     else:
@@ -457,3 +465,32 @@ def conclusion(table: pd.DataFrame, slope: float | None = None, orders=None) -> 
                      f"{_points(first['val_fit'], top['val_fit']):+.2f} points over {top['name']}), is not recommended: "
                      f"{_not_final(first, orders)}.")
     return Conclusion(simulation=str(sim["name"]), prediction=prediction, sentences=lines)
+
+
+def extremes_text(best: pd.Series, worst: pd.Series, recommended: Conclusion, orders=None) -> str:
+    """What the best-vs-worst section answers, and how its best relates to the model the conclusion recommends.
+
+    The lab (§3.7) asks for the best and the worst model *in terms of FIT*: the #1 and the last of the one-step
+    ranking, whatever their order.  The conclusion recommends models among the orders the orders rule chose
+    (``recommended``: :func:`conclusion`; ``orders``: the orders decision), so the #1 may not be one of them: the
+    sentence then says why (its order, or a one-step FIT no better than y(t−1)'s) and why both are shown."""
+    name = str(best["name"])
+    head = (f"The lab's best and worst model in terms of FIT (§3.7) are the #1 and the #{int(worst['rank'])} of the "
+            "one-step ranking (§6).")
+    uses = [u for u, m in (("simulation", recommended.simulation), ("one-step prediction", recommended.prediction))
+            if m == name]
+    if uses:
+        return head + f" The #1 is also the model the conclusion recommends for {' and '.join(uses)} (§9)."
+    if "final_order" in best.index and not bool(best["final_order"]):
+        why = _not_final(best, orders)
+    else:  # at a chosen order and not recommended for prediction: it does not beat y(t−1) by the margin
+        why = (f"one step ahead it adds {_points(best['val_fit'], best['val_fit_naive']):+.2f} points to the naive "
+               f"predictor y(t−1), less than {NAIVE_MARGIN:g}, and {recommended.simulation} simulates better")
+    if recommended.prediction == recommended.simulation:
+        use = f"{recommended.simulation} for simulation and one-step prediction"
+    else:
+        use = (f"{recommended.simulation} for simulation, "
+               + (f"{recommended.prediction}" if recommended.prediction else "y(t−1) itself")
+               + " for one-step prediction")
+    return (head + f" The #1 is not the model this report recommends (§9: {use}): {why}. Both are named: the #1 "
+            "answers the lab's question, the recommended model is the one to use.")
