@@ -468,18 +468,32 @@ def _sampling_period(system) -> float | None:
 
 
 def _frequency_response(system, w: np.ndarray) -> np.ndarray:
+    """G at the frequencies ``w`` (rad/s); a state-space system's in one batched solve of (zI − A) x = B
+    (python-control solves it point by point)."""
     if isinstance(system, PolyModel):
         return system.freqresp(w)
     import control as ct
 
     if not system.issiso():
         raise ValueError(f"plot_bode: {system.name} is not single-input single-output")
-    return np.asarray(ct.frequency_response(system, w).complex).reshape(-1)
+    if not isinstance(system, ct.StateSpace) or system.nstates == 0:
+        return np.asarray(ct.frequency_response(system, w).complex).reshape(-1)
+    z = np.exp(1j * w * system.dt) if system.isdtime(strict=True) else 1j * w
+    a, b, c, d = (np.asarray(m, dtype=float) for m in (system.A, system.B, system.C, system.D))
+    x = np.linalg.solve(z[:, None, None] * np.eye(a.shape[0]) - a, np.broadcast_to(b, (z.size, *b.shape)))
+    return (c @ x)[:, 0, 0] + d[0, 0]
 
 
 def _control_step(system, t: np.ndarray) -> np.ndarray:
+    """Response of a discrete-time system to a unit step at the sample times ``t``, from rest; a state-space
+    system's by its transfer function in one ``lfilter`` pass (python-control steps its state in Python)."""
     import control as ct
 
     if not system.issiso():
         raise ValueError(f"plot_step: {system.name} is not single-input single-output")
-    return np.asarray(ct.step_response(system, T=t).outputs, dtype=float).reshape(-1)
+    if not isinstance(system, ct.StateSpace) or system.nstates == 0:
+        return np.asarray(ct.step_response(system, T=t).outputs, dtype=float).reshape(-1)
+    from scipy.signal import lfilter, ss2tf
+
+    num, den = ss2tf(system.A, system.B, system.C, system.D)
+    return lfilter(num[0], den, np.ones(t.size))

@@ -210,6 +210,19 @@ def test_plot_bode_overlays_models_and_true_system():
     assert mag.get_xscale() == "log"
 
 
+def test_a_state_space_true_system_draws_its_own_g():
+    """The small-signal Jacobian is a state-space system (its response solved in one batch, its step by its
+    transfer function): the curves of the same G as a PolyModel's."""
+    m1 = _model(-1.5, "first")
+    true = ct.ss(ct.tf([1.0, 0.5], [1.0, -1.5, 0.7], TS), name="true")
+    mag, phase = plot_bode(m1, true_system=true).axes
+    np.testing.assert_allclose(mag.get_lines()[1].get_ydata(), mag.get_lines()[0].get_ydata(), rtol=1e-9)
+    np.testing.assert_allclose(np.cos(np.radians(phase.get_lines()[1].get_ydata())),
+                               np.cos(np.angle(m1.freqresp(mag.get_lines()[0].get_xdata()))), atol=1e-9)
+    (line,) = plot_step(true, n=80).axes[0].get_lines()
+    np.testing.assert_allclose(line.get_ydata(), m1.simulate(np.ones(80)), atol=1e-9)
+
+
 def test_plot_bode_custom_frequencies_and_errors():
     w = np.logspace(-1, 2, 50)
     fig = plot_bode(_model(-1.5, "m"), w=w)
