@@ -25,6 +25,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import LogLocator, MaxNLocator
+from matplotlib.transforms import ScaledTranslation
 
 from .data import IOData
 from .model import PolyModel
@@ -338,6 +339,9 @@ def clear(fig: Figure) -> Figure:
 
 # ---------------------------------------------------------------------------- helpers
 MARGINS = {"left": 0.9, "right": 0.25, "bottom": 0.55, "top": 0.35, "gap": 0.75}  # inches
+# from the axes to the x label's top and to the y label's right edge (inches): below the tick labels, and the
+# y label at the figure's left edge, where every tick label that fits the margin leaves room for it
+LABEL_OFFSETS = {"x": 0.31, "y": 0.65}
 
 
 def _figure(size: tuple[float, float], rows: int, cols: int, sharex: bool = False):
@@ -351,7 +355,14 @@ def _figure(size: tuple[float, float], rows: int, cols: int, sharex: bool = Fals
         hspace=gap * rows / max(height - MARGINS["bottom"] - MARGINS["top"] - gap * (rows - 1), 1e-3),
         wspace=gap * cols / max(width - MARGINS["left"] - MARGINS["right"] - gap * (cols - 1), 1e-3),
     )
-    return fig.subplots(rows, cols, sharex=sharex, squeeze=False).ravel()
+    axes = fig.subplots(rows, cols, sharex=sharex, squeeze=False).ravel()
+    for axis in axes:  # titles and axis labels at fixed places: drawing does not measure tick labels to place them
+        axis.set_title("", y=1.0)
+        axis.xaxis.set_label_coords(0.5, 0.0, axis.transAxes + ScaledTranslation(0.0, -LABEL_OFFSETS["x"],
+                                                                                  fig.dpi_scale_trans))
+        axis.yaxis.set_label_coords(0.0, 0.5, axis.transAxes + ScaledTranslation(-LABEL_OFFSETS["y"], 0.0,
+                                                                                  fig.dpi_scale_trans))
+    return axes
 
 
 def _axes(ax: Axes | None) -> Axes:
