@@ -137,8 +137,8 @@ def plot_pzmap(
     the plane; they would hide the poles).  The zoom is a square around all models'
     poles (``ZOOM_PAD`` margin, at least ``MIN_ZOOM`` half-width), marked by a rectangle
     on the left panel; it shows the unit circle's arc where it crosses the window.  The
-    left panel reaches out to |z| = ``CONTEXT_REACH`` at most and says how many roots lie
-    beyond.  ``ax``: a (context, zoom) pair or None.
+    left panel frames the unit circle, the zoom and the roots out to |z| = ``CONTEXT_REACH`` at
+    most (its limits grown to the panel's shape) and says how many roots lie beyond.  ``ax``: a (context, zoom) pair or None.
     """
     systems = _as_list(models, "plot_pzmap")
     bounds = level is not None or sd is not None
@@ -172,13 +172,19 @@ def plot_pzmap(
     reach = max(1.1, abs(centre.real) + half, abs(centre.imag) + half,
                 min(1.05 * float(radii.max(initial=0.0)), CONTEXT_REACH))
     beyond = int(np.sum(radii > reach))
-    ax_all.set_xlim(-reach, reach)
-    ax_all.set_ylim(-reach, reach)
+    roots = np.concatenate(everything)
+    roots = roots[np.isfinite(roots) & (np.abs(roots) <= reach)]
+    corners = centre + half * np.array([1 + 1j, -1 - 1j])
+    shown = np.concatenate([roots, corners, [1.1, -1.1, 1.1j]])  # the roots, the zoom's frame, the unit circle
+    pad = 0.05 * reach
+    ax_all.set_xlim(shown.real.min() - pad, shown.real.max() + pad)
+    ax_all.set_ylim(-np.abs(shown.imag).max() - pad, np.abs(shown.imag).max() + pad)  # conjugates: symmetric
     ax_all.add_patch(Rectangle((centre.real - half, centre.imag - half), 2 * half, 2 * half,
                                fill=False, edgecolor="0.3", linewidth=0.8))
     _few_ticks(ax_all, ax_zoom)
+    ax_all.set_aspect("equal", adjustable="datalim")  # the panel filled: its limits grow to the panel's shape
+    ax_zoom.set_aspect("equal", adjustable="box")
     for axis in (ax_all, ax_zoom):
-        axis.set_aspect("equal", adjustable="box")
         axis.set_xlabel("Re z (–)")
     ax_all.set_ylabel("Im z (–)")
     what = "" if not bounds else f", {_level_text(level, sd)} regions"

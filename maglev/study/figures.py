@@ -61,9 +61,10 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
         ax.bar_label(bars, fmt="%.1f", fontsize="x-small")
     low = float(np.nanmin(comp["val_fit"]))
     ax.set_ylim(min(0.0, low - 5.0), 100.5)  # from 0 (below it only when a FIT is negative): bar lengths compare
-    ax.set_xticks(range(len(orders)), [f"{structure}{o}" for o in orders])
+    # MATLAB's order vectors under the bars, the structure once below them: long labels ran into each other
+    ax.set_xticks(range(len(orders)), [f"[{o.replace('-', ' ')}]" for o in orders])
     ax.set_ylabel("one-step FIT on own validation data (%)")
-    ax.set_xlabel("structure and orders")
+    ax.set_xlabel(f"orders of {structure}")
     ax.set_title(f"{structure}: binary (hatched) vs uniform input", fontsize="medium")
     ax.legend(loc="lower right", fontsize="small")
     if common is not None:
@@ -73,7 +74,8 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
         for (i, k), v in np.ndenumerate(values):
             ax2.text(k, i, "" if np.isnan(v) else f"{v:.1f}", ha="center", va="center", color="w",
                      fontsize="small")
-        ax2.set_xticks(range(values.shape[1]), list(common.columns), rotation=20, ha="right")
+        ax2.set_xticks(range(values.shape[1]), list(common.columns), rotation=30, ha="right",
+                       rotation_mode="anchor")  # anchored at the tick: long record names do not run into each other
         ax2.set_yticks(range(values.shape[0]), list(common.index), fontsize="small")
         ax2.set_title("FIT % of each model on each validation set", fontsize="medium")
         ax2.set_xlabel("validation data")
