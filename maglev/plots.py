@@ -138,7 +138,7 @@ def plot_pzmap(
     poles (``ZOOM_PAD`` margin, at least ``MIN_ZOOM`` half-width), marked by a rectangle
     on the left panel; it shows the unit circle's arc where it crosses the window.  The
     left panel frames the unit circle, the zoom and the roots out to |z| = ``CONTEXT_REACH`` at
-    most (its limits grown to the panel's shape) and says how many roots lie beyond.  ``ax``: a (context, zoom) pair or None.
+    most (widened to the panel's shape) and says how many roots lie beyond.  ``ax``: a (context, zoom) pair or None.
     """
     systems = _as_list(models, "plot_pzmap")
     bounds = level is not None or sd is not None
@@ -177,14 +177,13 @@ def plot_pzmap(
     corners = centre + half * np.array([1 + 1j, -1 - 1j])
     shown = np.concatenate([roots, corners, [1.1, -1.1, 1.1j]])  # the roots, the zoom's frame, the unit circle
     pad = 0.05 * reach
-    ax_all.set_xlim(shown.real.min() - pad, shown.real.max() + pad)
-    ax_all.set_ylim(-np.abs(shown.imag).max() - pad, np.abs(shown.imag).max() + pad)  # conjugates: symmetric
+    _fill_panel(ax_all, (shown.real.min() - pad, shown.real.max() + pad),
+                (-np.abs(shown.imag).max() - pad, np.abs(shown.imag).max() + pad))  # conjugates: symmetric
     ax_all.add_patch(Rectangle((centre.real - half, centre.imag - half), 2 * half, 2 * half,
                                fill=False, edgecolor="0.3", linewidth=0.8))
     _few_ticks(ax_all, ax_zoom)
-    ax_all.set_aspect("equal", adjustable="datalim")  # the panel filled: its limits grow to the panel's shape
-    ax_zoom.set_aspect("equal", adjustable="box")
     for axis in (ax_all, ax_zoom):
+        axis.set_aspect("equal", adjustable="box")
         axis.set_xlabel("Re z (–)")
     ax_all.set_ylabel("Im z (–)")
     what = "" if not bounds else f", {_level_text(level, sd)} regions"
@@ -422,6 +421,17 @@ def _zoom_square(poles: np.ndarray) -> tuple[complex, float]:
     centre = (lo + hi) / 2
     spread = max(hi.real - lo.real, hi.imag - lo.imag)
     return centre, max((0.5 + ZOOM_PAD) * spread, MIN_ZOOM)
+
+
+def _fill_panel(axis: Axes, x: tuple[float, float], y: tuple[float, float]) -> None:
+    """Limits holding the ranges ``x`` and ``y`` at equal scales, the shorter widened about its centre to the
+    shape of the axes' panel, so that an equal-aspect plot fills it."""
+    box = axis.get_position(original=True)  # the panel, not the box a previous draw fitted to its aspect
+    width, height = box.width * axis.figure.get_figwidth(), box.height * axis.figure.get_figheight()
+    scale = max((x[1] - x[0]) / width, (y[1] - y[0]) / height)  # data units per inch
+    for setter, (lo, hi), inches in ((axis.set_xlim, x, width), (axis.set_ylim, y, height)):
+        centre = (lo + hi) / 2
+        setter(centre - scale * inches / 2, centre + scale * inches / 2)
 
 
 def _unit_circle(axis: Axes, window: tuple[complex, float] | None) -> None:

@@ -162,6 +162,9 @@ def test_plot_pzmap_zooms_on_the_poles_with_the_unit_circle_as_context():
     assert np.sum((ax_ >= x0) & (ax_ <= x1) & (ay_ >= y0) & (ay_ <= y1)) > 100  # the arc, finely, in the window
     assert context.get_xlim()[1] >= 3.0 and context.get_ylim()[0] <= -1.0  # the zero at 3 and the circle
     assert context.get_xlim()[0] > -1.5  # nothing on the left but the circle: no empty half
+    box, fig = context.get_position(original=True), context.figure
+    (c0, c1), (d0, d1) = context.get_xlim(), context.get_ylim()  # equal scales that fill the panel: no shrunk box
+    assert (c1 - c0) / (d1 - d0) == pytest.approx(box.width * fig.get_figwidth() / (box.height * fig.get_figheight()))
     (frame,) = context.patches
     assert frame.get_x() == pytest.approx(x0) and frame.get_width() == pytest.approx(x1 - x0)
 
