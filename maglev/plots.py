@@ -25,6 +25,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import LogLocator, MaxNLocator
+from matplotlib.transforms import ScaledTranslation
 
 from .data import IOData
 from .model import PolyModel
@@ -136,8 +137,8 @@ def plot_pzmap(
     the plane; they would hide the poles).  The zoom is a square around all models'
     poles (``ZOOM_PAD`` margin, at least ``MIN_ZOOM`` half-width), marked by a rectangle
     on the left panel; it shows the unit circle's arc where it crosses the window.  The
-    left panel reaches out to |z| = ``CONTEXT_REACH`` at most and says how many roots lie
-    beyond.  ``ax``: a (context, zoom) pair or None.
+    left panel frames the unit circle, the zoom and the roots out to |z| = ``CONTEXT_REACH`` at
+    most (widened to the panel's shape) and says how many roots lie beyond.  ``ax``: a (context, zoom) pair or None.
     """
     systems = _as_list(models, "plot_pzmap")
     bounds = level is not None or sd is not None
@@ -171,8 +172,13 @@ def plot_pzmap(
     reach = max(1.1, abs(centre.real) + half, abs(centre.imag) + half,
                 min(1.05 * float(radii.max(initial=0.0)), CONTEXT_REACH))
     beyond = int(np.sum(radii > reach))
-    ax_all.set_xlim(-reach, reach)
-    ax_all.set_ylim(-reach, reach)
+    roots = np.concatenate(everything)
+    roots = roots[np.isfinite(roots) & (np.abs(roots) <= reach)]
+    corners = centre + half * np.array([1 + 1j, -1 - 1j])
+    shown = np.concatenate([roots, corners, [1.1, -1.1, 1.1j]])  # the roots, the zoom's frame, the unit circle
+    pad = 0.05 * reach
+    _fill_panel(ax_all, (shown.real.min() - pad, shown.real.max() + pad),
+                (-np.abs(shown.imag).max() - pad, np.abs(shown.imag).max() + pad))  # conjugates: symmetric
     ax_all.add_patch(Rectangle((centre.real - half, centre.imag - half), 2 * half, 2 * half,
                                fill=False, edgecolor="0.3", linewidth=0.8))
     _few_ticks(ax_all, ax_zoom)
@@ -338,6 +344,9 @@ def clear(fig: Figure) -> Figure:
 
 # ---------------------------------------------------------------------------- helpers
 MARGINS = {"left": 0.9, "right": 0.25, "bottom": 0.55, "top": 0.35, "gap": 0.75}  # inches
+# from the axes to the x label's top and to the y label's right edge (inches): below the tick labels, and the
+# y label at the figure's left edge, where every tick label that fits the margin leaves room for it
+LABEL_OFFSETS = {"x": 0.31, "y": 0.65}
 
 
 def _figure(size: tuple[float, float], rows: int, cols: int, sharex: bool = False):
@@ -351,7 +360,14 @@ def _figure(size: tuple[float, float], rows: int, cols: int, sharex: bool = Fals
         hspace=gap * rows / max(height - MARGINS["bottom"] - MARGINS["top"] - gap * (rows - 1), 1e-3),
         wspace=gap * cols / max(width - MARGINS["left"] - MARGINS["right"] - gap * (cols - 1), 1e-3),
     )
-    return fig.subplots(rows, cols, sharex=sharex, squeeze=False).ravel()
+    axes = fig.subplots(rows, cols, sharex=sharex, squeeze=False).ravel()
+    for axis in axes:  # titles and axis labels at fixed places: drawing does not measure tick labels to place them
+        axis.set_title("", y=1.0)
+        axis.xaxis.set_label_coords(0.5, 0.0, axis.transAxes + ScaledTranslation(0.0, -LABEL_OFFSETS["x"],
+                                                                                  fig.dpi_scale_trans))
+        axis.yaxis.set_label_coords(0.0, 0.5, axis.transAxes + ScaledTranslation(-LABEL_OFFSETS["y"], 0.0,
+                                                                                  fig.dpi_scale_trans))
+    return axes
 
 
 def _axes(ax: Axes | None) -> Axes:
@@ -405,6 +421,17 @@ def _zoom_square(poles: np.ndarray) -> tuple[complex, float]:
     centre = (lo + hi) / 2
     spread = max(hi.real - lo.real, hi.imag - lo.imag)
     return centre, max((0.5 + ZOOM_PAD) * spread, MIN_ZOOM)
+
+
+def _fill_panel(axis: Axes, x: tuple[float, float], y: tuple[float, float]) -> None:
+    """Limits holding the ranges ``x`` and ``y`` at equal scales, the shorter widened about its centre to the
+    shape of the axes' panel, so that an equal-aspect plot fills it."""
+    box = axis.get_position(original=True)  # the panel, not the box a previous draw fitted to its aspect
+    width, height = box.width * axis.figure.get_figwidth(), box.height * axis.figure.get_figheight()
+    scale = max((x[1] - x[0]) / width, (y[1] - y[0]) / height)  # data units per inch
+    for setter, (lo, hi), inches in ((axis.set_xlim, x, width), (axis.set_ylim, y, height)):
+        centre = (lo + hi) / 2
+        setter(centre - scale * inches / 2, centre + scale * inches / 2)
 
 
 def _unit_circle(axis: Axes, window: tuple[complex, float] | None) -> None:
@@ -468,18 +495,32 @@ def _sampling_period(system) -> float | None:
 
 
 def _frequency_response(system, w: np.ndarray) -> np.ndarray:
+    """G at the frequencies ``w`` (rad/s); a state-space system's in one batched solve of (zI − A) x = B
+    (python-control solves it point by point)."""
     if isinstance(system, PolyModel):
         return system.freqresp(w)
     import control as ct
 
     if not system.issiso():
         raise ValueError(f"plot_bode: {system.name} is not single-input single-output")
-    return np.asarray(ct.frequency_response(system, w).complex).reshape(-1)
+    if not isinstance(system, ct.StateSpace) or system.nstates == 0:
+        return np.asarray(ct.frequency_response(system, w).complex).reshape(-1)
+    z = np.exp(1j * w * system.dt) if system.isdtime(strict=True) else 1j * w
+    a, b, c, d = (np.asarray(m, dtype=float) for m in (system.A, system.B, system.C, system.D))
+    x = np.linalg.solve(z[:, None, None] * np.eye(a.shape[0]) - a, np.broadcast_to(b, (z.size, *b.shape)))
+    return (c @ x)[:, 0, 0] + d[0, 0]
 
 
 def _control_step(system, t: np.ndarray) -> np.ndarray:
+    """Response of a discrete-time system to a unit step at the sample times ``t``, from rest; a state-space
+    system's by its transfer function in one ``lfilter`` pass (python-control steps its state in Python)."""
     import control as ct
 
     if not system.issiso():
         raise ValueError(f"plot_step: {system.name} is not single-input single-output")
-    return np.asarray(ct.step_response(system, T=t).outputs, dtype=float).reshape(-1)
+    if not isinstance(system, ct.StateSpace) or system.nstates == 0:
+        return np.asarray(ct.step_response(system, T=t).outputs, dtype=float).reshape(-1)
+    from scipy.signal import lfilter, ss2tf
+
+    num, den = ss2tf(system.A, system.B, system.C, system.D)
+    return lfilter(num[0], den, np.ones(t.size))

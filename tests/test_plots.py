@@ -161,6 +161,10 @@ def test_plot_pzmap_zooms_on_the_poles_with_the_unit_circle_as_context():
     ax_, ay_ = arc.get_xdata(), arc.get_ydata()
     assert np.sum((ax_ >= x0) & (ax_ <= x1) & (ay_ >= y0) & (ay_ <= y1)) > 100  # the arc, finely, in the window
     assert context.get_xlim()[1] >= 3.0 and context.get_ylim()[0] <= -1.0  # the zero at 3 and the circle
+    assert context.get_xlim()[0] > -1.5  # nothing on the left but the circle: no empty half
+    box, fig = context.get_position(original=True), context.figure
+    (c0, c1), (d0, d1) = context.get_xlim(), context.get_ylim()  # equal scales that fill the panel: no shrunk box
+    assert (c1 - c0) / (d1 - d0) == pytest.approx(box.width * fig.get_figwidth() / (box.height * fig.get_figheight()))
     (frame,) = context.patches
     assert frame.get_x() == pytest.approx(x0) and frame.get_width() == pytest.approx(x1 - x0)
 
@@ -183,7 +187,9 @@ def test_plot_pzmap_draws_the_confidence_regions_of_poles_and_zeros():
 def test_plot_pzmap_context_stops_at_three_and_says_what_it_leaves_out():
     far = PolyModel(A=[1.0, -0.5], B=[0, 1.0, -9.0], C=ONE, D=ONE, F=ONE, nk=1, Ts=TS, structure="arx")
     context, _ = plot_pzmap(far).axes
-    assert context.get_xlim() == pytest.approx((-3.0, 3.0))
+    x0, x1 = context.get_xlim()
+    y0, y1 = context.get_ylim()
+    assert x0 < -1.0 and 1.0 < x1 < 3.0 and y0 < -1.0 < 1.0 < y1 < 3.0  # the circle and the pole, not the zero at 9
     assert context.get_title().endswith("(1 beyond |z| = 3)")
     assert "beyond" not in plot_pzmap(_model(-1.5, "m")).axes[0].get_title()
 
@@ -208,6 +214,19 @@ def test_plot_bode_overlays_models_and_true_system():
     np.testing.assert_allclose(np.cos(np.radians(phase.get_lines()[2].get_ydata())),
                                np.cos(np.angle(m1.freqresp(w))), atol=1e-9)
     assert mag.get_xscale() == "log"
+
+
+def test_a_state_space_true_system_draws_its_own_g():
+    """The small-signal Jacobian is a state-space system (its response solved in one batch, its step by its
+    transfer function): the curves of the same G as a PolyModel's."""
+    m1 = _model(-1.5, "first")
+    true = ct.ss(ct.tf([1.0, 0.5], [1.0, -1.5, 0.7], TS), name="true")
+    mag, phase = plot_bode(m1, true_system=true).axes
+    np.testing.assert_allclose(mag.get_lines()[1].get_ydata(), mag.get_lines()[0].get_ydata(), rtol=1e-9)
+    np.testing.assert_allclose(np.cos(np.radians(phase.get_lines()[1].get_ydata())),
+                               np.cos(np.angle(m1.freqresp(mag.get_lines()[0].get_xdata()))), atol=1e-9)
+    (line,) = plot_step(true, n=80).axes[0].get_lines()
+    np.testing.assert_allclose(line.get_ydata(), m1.simulate(np.ones(80)), atol=1e-9)
 
 
 def test_plot_bode_custom_frequencies_and_errors():

@@ -23,7 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 log = logging.getLogger("maglev.study")
 
-# One renderer: a run's five figures take ≈ 0.4 s of CPU (drawn on the figures of the run before), less than
+# One renderer: a run's five figures take ≈ 0.2 s of CPU (drawn on the figures of the run before), less than
 # the time from one run to the next, so one process keeps up on the second core; a second one cost ≈ 3-5 s
 # more CPU per sweep (its imports) for no shorter sweep (36-48 s both ways at load 1.5-2.5,
 # bench/study_overhead.py --sweep)
