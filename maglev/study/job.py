@@ -141,7 +141,7 @@ def run(cfg: DictConfig) -> float | None:
     chash = config_hash(plain)
     label = progress(ctx) + run_label(plain)
     try:
-        client, exp_id = tracking.connect(plain["tracking"])
+        client, exp_id = tracking.connect(plain["tracking"], reuse=ctx.get("sweep_dir") is not None)
     except tracking.StoreProblem as exc:
         raise RunRefused(f"maglev: {exc}") from None
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
