@@ -228,7 +228,7 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
         _pool = None
     for run_id in left if write else []:
         try:
-            _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status,
+            _fail(_pending[run_id][0], run_id, "the sweep stopped before the renderer finished this run", status,
                   quiet=True)
         except Exception as exc:  # noqa: BLE001 — the store may be gone too; mark the others
             log.error("run %s left RUNNING: %s: %s", run_id, type(exc).__name__, exc)
