@@ -269,7 +269,7 @@ class SweepCallback(Callback):
             skipping = all(j["study"]["skip_finished"] for j in jobs)
             log.info("sweep %r: %d configs checked; %d to run, %d FINISHED already%s", name, configs,
                      configs - finished if skipping else len(jobs), finished, " (skipped)" if skipping else "")
-        server = task["tracking"]["uri"].startswith(("http://", "https://"))
+        server = tracking.is_http(task["tracking"]["uri"])
         if server:  # one that does not answer ends the sweep here, before the processes below start for nothing
             client, exp_id = tracking.connect(task["tracking"])
         missing = datasets.missing_blas(jobs)

@@ -7,7 +7,6 @@ exactly the images the HTML report embeds.
 
 from __future__ import annotations
 
-
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure

@@ -394,7 +394,6 @@ def structures(table_: pd.DataFrame, models: dict, lab: dict, decisions: dict | 
 
 def top_four(ranking) -> str:
     """§3.7: the top four by one-step validation FIT, with y(t−1)'s FIT and the simulation FIT beside."""
-    cols = ["rank", "name", "val_fit", "val_fit_naive", "val_fit_sim", "n_params", "val_dataset"]
     note = validation_note(ranking.top)
     text = para(f"{len(ranking.table)} models ranked by one-step-ahead FIT on validation data (the lab's eq. 5; ties "
                 "to fewer parameters)"
