@@ -388,7 +388,7 @@ class SweepCallback(Callback):
                 after = tracking.children(self.client, self.exp_id, self.parent)
                 killed = {r.info.run_id for r in after if r.info.status == "KILLED"}
                 finished = sum(r.info.status == "FINISHED" for r in after)
-                parts = [f"{len(set(drawing) & killed)} with figures not drawn" if drawing else "",
+                parts = [f"{len(set(drawing) & killed)} not finished by the renderer" if drawing else "",
                          f"{len(set(left) & killed)} left RUNNING by a process that is gone" if left else ""]
                 detail = f"{len(killed)} KILLED" + (f" ({', '.join(p for p in parts if p)})" if any(parts) else "")
                 log.warning("sweep stopped (%s): parent run %s KILLED; its runs: %d FINISHED, %s; the same command "

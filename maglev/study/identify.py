@@ -71,18 +71,41 @@ def run_label(cfg: dict) -> str:
     return f"{cfg['structure']['name']} {orders} · {cfg['dataset']['name']}"
 
 
+@dataclass
+class Estimated:
+    """A run's model and what its console line says (its one-step validation FIT), before the rest of its
+    validation (:func:`validate`); picklable, so that a background process can finish the run
+    (:mod:`maglev.study.render`)."""
+
+    cfg: dict
+    prepared: Prepared
+    model: PolyModel
+    fit_seconds: float
+    val_fit: float
+    yhat: np.ndarray
+
+
 @single_threaded_blas  # same numbers, bit for bit, whichever launcher or process runs it
-def identify(cfg: dict) -> RunOutput:
-    """Estimate the configured structure on the dataset's estimation part and validate it."""
-    st, study = cfg["structure"], cfg["study"]
+def estimate_run(cfg: dict) -> Estimated:
+    """Estimate the configured structure on the dataset's estimation part; its ``val_horizon``-step FIT on the
+    validation part."""
+    st = cfg["structure"]
     prep = load(cfg["dataset"], cfg["data_dir"])
     options = {} if structure(st["name"]).least_squares else {"max_iterations": int(st["max_iterations"])}
     tic = time.perf_counter()
     model = estimate(prep.est, st["name"], orders_of(st), st["initial_condition"], **options)
     fit_seconds = time.perf_counter() - tic
+    val_fit, yhat = compare(prep.val, model, int(cfg["study"]["val_horizon"]))
+    return Estimated(cfg, prep, model, fit_seconds, val_fit, yhat)
 
+
+@single_threaded_blas
+def validate(run: Estimated) -> RunOutput:
+    """Everything else a run logs about its model: simulation FIT, residual tests, criteria, poles, and for
+    simulated data the distances to the small-signal Jacobian and to the best linear approximation."""
+    cfg, prep, model, val_fit, yhat = run.cfg, run.prepared, run.model, run.val_fit, run.yhat
+    study = cfg["study"]
     horizon = int(study["val_horizon"])
-    val_fit, yhat = compare(prep.val, model, horizon)
     val_fit_sim, ysim = compare(prep.val, model, math.inf)
     rr = resid(prep.val, model, lags=int(study["resid_lags"]))
     rep = model.report
@@ -91,7 +114,7 @@ def identify(cfg: dict) -> RunOutput:
         "val_fit": val_fit, "val_fit_sim": val_fit_sim, "val_fit_naive": naive_fit(prep.val, horizon),
         "est_fit": rep.fit_percent,
         "loss": rep.loss, "fpe": rep.fpe, "aic": rep.aic, "aicc": rep.aicc, "bic": rep.bic,
-        "n_params": rep.n_params, "iterations": rep.iterations, "fit_seconds": fit_seconds,
+        "n_params": rep.n_params, "iterations": rep.iterations, "fit_seconds": run.fit_seconds,
         "whiteness_stat": rr.whiteness_stat, "whiteness_pvalue": rr.whiteness_pvalue,
         "whiteness_pass": float(rr.white),
         "independence_stat": rr.independence_stat, "independence_pvalue": rr.independence_pvalue,
@@ -112,6 +135,11 @@ def identify(cfg: dict) -> RunOutput:
     inputs = FigureInputs(prep, model, rr, yhat, ysim, val_fit, val_fit_sim, horizon, jacobian, ref)
     return RunOutput(model=model, metrics={k: float(v) for k, v in metrics.items()}, resid=rr.to_dict(),
                      prepared=prep, figure_inputs=inputs)
+
+
+def identify(cfg: dict) -> RunOutput:
+    """Estimate the configured structure on the dataset's estimation part and validate it."""
+    return validate(estimate_run(cfg))
 
 
 # ---------------------------------------------------------------------------- truth and data

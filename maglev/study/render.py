@@ -2,9 +2,11 @@
 
 A run's five figures cost far more than its estimation (matplotlib's text layout and
 rasterising) and no number depends on them.  In a sweep on the basic launcher, a job
-logs everything else, hands the figure inputs (:class:`maglev.study.identify.FigureInputs`)
-to the renderer (one process, started with the sweep) and returns; the renderer draws,
-uploads the PNGs and only then marks the run FINISHED, so FINISHED still means complete.  The sweep callback waits
+estimates, hands the rest of its run (:class:`maglev.study.finish.Work`: the validation no later
+job needs, the uploads, the figures) to the renderer (one process, started with the sweep) and
+returns; the renderer validates, logs, draws, uploads the PNGs and only then marks the run
+FINISHED, so FINISHED still means complete (:func:`maglev.study.finish.complete`; a failure there
+ends the run FAILED with its error, and the launcher prints it).  The sweep callback waits
 for it (:func:`drain`) before it counts the runs and the ranking reads them.  A single
 run, or a job in a joblib worker (already one of several processes), draws inline.
 
@@ -20,6 +22,7 @@ import logging
 import multiprocessing
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from typing import Callable
 
 log = logging.getLogger("maglev.study")
 
@@ -29,14 +32,14 @@ log = logging.getLogger("maglev.study")
 # bench/study_overhead.py --sweep)
 WORKERS = 1
 _pool: ProcessPoolExecutor | None = None
-_pending: dict[str, tuple[str, Future, object]] = {}  # run id -> (tracking URI, its render, figure inputs)
+_pending: dict[str, tuple[str, Future, object, Callable]] = {}  # run id -> (tracking URI, its render, inputs, task)
 _figures: dict = {}  # this process's run figures, drawn again for every run (maglev.study.figures.run_figures)
 _lab: tuple[Future, tuple] | None = None  # the sweep's lab steps queued on the renderer, and their arguments
 
 
-def draw_and_finish(uri: str, run_id: str, inputs) -> None:
+def draw_and_finish(uri: str, run_id: str, inputs, client=None) -> None:
     """Draw the run's figures, upload them and mark the run FINISHED (a drawing error is tagged, not fatal:
-    the run's numbers are complete)."""
+    the run's numbers are complete).  ``client``: the store's, if the caller has one."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -45,7 +48,7 @@ def draw_and_finish(uri: str, run_id: str, inputs) -> None:
     from maglev.study import tracking
     from maglev.study.figures import RUN_DPI, png, run_figures
 
-    client = MlflowClient(tracking_uri=uri)
+    client = MlflowClient(tracking_uri=uri) if client is None else client
     try:
         figures = run_figures(inputs, reuse=_figures)
         tracking.log_files(client, run_id, {f"figures/{name}": png(fig, RUN_DPI) for name, fig in figures.items()})
@@ -129,7 +132,10 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the launcher stops it
     import mlflow  # noqa: F401
 
+    import control  # noqa: F401  (the runs' small-signal Jacobian)
+
     import maglev.study.figures  # noqa: F401
+    import maglev.study.identify  # noqa: F401  (the runs' validation: maglev.study.finish)
     import maglev.study.tracking  # noqa: F401
 
 
@@ -149,23 +155,32 @@ def start(env: dict[str, str] | None = None) -> None:
             _pool.submit(int)
 
 
-def submit(uri: str, run_id: str, inputs) -> None:
-    """Queue the run's figures on the background renderer (started on first use)."""
+def submit(uri: str, run_id: str, inputs, task: Callable = draw_and_finish) -> None:
+    """Queue ``task(uri, run_id, inputs)`` on the background renderer (started on first use): by default the
+    run's figures; a task that returns a line (a run it ended FAILED) has it printed here as an error."""
     global _pool
     for _ in range(2):
         if _pool is None:
             start()
         try:
-            _pending[run_id] = (uri, _pool.submit(draw_and_finish, uri, run_id, inputs), inputs)
+            fut = _pool.submit(task, uri, run_id, inputs)
+            _pending[run_id] = (uri, fut, inputs, task)
+            fut.add_done_callback(_say)
             return
         except BrokenProcessPool:  # the renderer died earlier: start a new one
             _pool = None
     raise RuntimeError("the figure renderer cannot be started")
 
 
+def _say(fut: Future) -> None:
+    """A task's line, printed as soon as the renderer ends it (in this process's pool thread)."""
+    if not fut.cancelled() and fut.exception() is None and fut.result():
+        log.error("%s", fut.result())
+
+
 def pending() -> list[str]:
     """Run ids whose figures are not drawn yet."""
-    return [run_id for run_id, (_, fut, _) in _pending.items() if not fut.done()]
+    return [run_id for run_id, (_, fut, _, _) in _pending.items() if not fut.done()]
 
 
 def drain() -> dict[str, str]:
@@ -175,14 +190,16 @@ def drain() -> dict[str, str]:
     are marked FAILED with the error, never left RUNNING.  The lab steps queued first are waited for first."""
     _drain_lab()
     failed = {}
-    for run_id in [run_id for run_id, (_, fut, _) in _pending.items() if fut.cancel()]:
-        uri, _, inputs = _pending.pop(run_id)
+    for run_id in [run_id for run_id, (_, fut, _, _) in _pending.items() if fut.cancel()]:
+        uri, _, inputs, task = _pending.pop(run_id)
         try:
-            draw_and_finish(uri, run_id, inputs)
+            said = task(uri, run_id, inputs)
+            if said:
+                log.error("%s", said)
         except Exception as exc:  # noqa: BLE001 — e.g. the store refused the upload
             failed[run_id] = f"{type(exc).__name__}: {exc}"
             _fail(uri, run_id, failed[run_id])
-    for run_id, (uri, fut, _) in list(_pending.items()):
+    for run_id, (uri, fut, _, _) in list(_pending.items()):
         try:
             fut.result()
         except Exception as exc:  # noqa: BLE001 — e.g. BrokenProcessPool: the renderer died
@@ -200,7 +217,7 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
     launch of the sweep (its parent run lacks ``lab_logged``)."""
     global _pool, _lab
     _lab = None
-    left = [run_id for run_id, (_, fut, _) in _pending.items()
+    left = [run_id for run_id, (_, fut, _, _) in _pending.items()
             if not (fut.done() and not fut.cancelled() and fut.exception() is None)]
     if _pool is not None:
         processes = list((_pool._processes or {}).values())
@@ -211,7 +228,7 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
         _pool = None
     for run_id in left if write else []:
         try:
-            _fail(_pending[run_id][0], run_id, "the sweep stopped before this run's figures were drawn", status,
+            _fail(_pending[run_id][0], run_id, "the sweep stopped before the renderer finished this run", status,
                   quiet=True)
         except Exception as exc:  # noqa: BLE001 — the store may be gone too; mark the others
             log.error("run %s left RUNNING: %s: %s", run_id, type(exc).__name__, exc)

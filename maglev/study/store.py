@@ -157,14 +157,36 @@ def load_sweep(uri: str, experiment: str, parent_id: str | None = None, reap: bo
                          f"({detail})")
     from maglev.study.credentials import public
 
+    _ARTIFACT_URIS.update({r.info.run_id: r.info.artifact_uri for r in [parent, *kids]})
     return Sweep(client=client, uri=public(uri), experiment_id=exp_id, experiment=experiment, parent=parent,
                  runs=model_rows(finished), ignored=ignored)
+
+
+# artifact URIs of the runs read by load_sweep: a local store's artifacts are then read as files, not downloaded
+# (MLflow reads the whole run back for each download: ≈ 20 ms of the ≈ 50 artifacts a sweep's end reads)
+_ARTIFACT_URIS: dict[str, str] = {}
+
+
+def local_artifact(run_id: str, path: str) -> Path | None:
+    """Where a run of a local artifact store (``file://``) keeps the artifact ``path``; None if the run's
+    artifacts are elsewhere (a server) or its URI was not read."""
+    from urllib.parse import unquote, urlparse
+
+    uri = urlparse(_ARTIFACT_URIS.get(run_id, ""))
+    if uri.scheme != "file" or uri.netloc not in ("", "localhost"):
+        return None
+    root = Path(unquote(uri.path))
+    local = root / path
+    return local if root.resolve() in local.resolve().parents else None
 
 
 def artifact_bytes(client, run_id: str, path: str) -> bytes | None:
     """The content of one artifact, or None when the run has no such artifact."""
     from mlflow.exceptions import MlflowException
 
+    local = local_artifact(run_id, path)
+    if local is not None:
+        return local.read_bytes() if local.is_file() else None
     with tempfile.TemporaryDirectory(prefix="maglev-rank-") as tmp:
         try:
             local = client.download_artifacts(run_id, path, tmp)

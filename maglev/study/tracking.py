@@ -339,8 +339,16 @@ def _defer_signals_in_sessions(client: MlflowClient) -> None:
     store.ManagedSessionMaker = deferring
 
 
-def connect(tracking: dict) -> tuple[MlflowClient, str]:
-    """Client and experiment id for the ``tracking`` config; creates the store/experiment if needed."""
+_CONNECTED: dict[str, tuple[MlflowClient, str]] = {}  # connect's answers in this process, by tracking config
+
+
+def connect(tracking: dict, reuse: bool = False) -> tuple[MlflowClient, str]:
+    """Client and experiment id for the ``tracking`` config; creates the store/experiment if needed.
+    ``reuse``: the answer of an earlier call with the same config in this process, if any (a sweep's jobs:
+    the sweep callback checked the store, created the experiment and tagged it already; ≈ 7 ms a job)."""
+    key = json.dumps(tracking, sort_keys=True, default=str)
+    if reuse and key in _CONNECTED:
+        return _CONNECTED[key]
     uri = tracking["uri"]
     db = sqlite_path(uri)
     if db is not None and not db.is_absolute():
@@ -362,6 +370,7 @@ def connect(tracking: dict) -> tuple[MlflowClient, str]:
         else:
             exp_id = exp.experiment_id
         tag_experiment(client, exp_id)  # check-then-write: two processes at once would both insert
+    _CONNECTED[key] = client, exp_id
     return client, exp_id
 
 

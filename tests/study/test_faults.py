@@ -144,7 +144,7 @@ def test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_
             raise OSError("artifact store unavailable")
         real_log_files(client, run_id, files)
 
-    monkeypatch.setattr(job, "identify", broken)
+    monkeypatch.setattr(job, "estimate_run", broken)
     monkeypatch.setattr(tracking, "log_files", flaky_upload)
     # no figures: a run that fails in identify has none to draw, and the renderer's process would start for nothing
     launch(migrated_store, "dataset=binary_a025", "structure=arx,oe", *TINY, "lab.enabled=false",

@@ -100,3 +100,30 @@ def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_f
     assert lines == ["lab steps failed: KeyError: 'lab'"]
     render.abandon()
 
+
+
+def test_a_run_the_renderer_cannot_validate_ends_failed_with_its_error_and_the_launcher_says_so(store):
+    """A sweep's job hands its estimated run to the renderer (maglev.study.finish.complete): an error there marks
+    the run FAILED with its error tag, traceback and config, as an error in the job does, and is printed here."""
+    from maglev.study.finish import Work, complete
+    from maglev.study.identify import Estimated
+
+    from .harness import artifact_paths, study_log
+
+    uri, client, exp = store
+    render.start()
+    run = client.create_run(exp).info.run_id
+    cfg = {"tracking": {"uri": uri}, "study": {"val_horizon": 1}}
+    broken = Estimated(cfg, prepared=None, model=None, fit_seconds=0.0, val_fit=50.0, yhat=None)  # no data
+    with study_log() as lines:
+        render.submit(uri, run, Work(broken, hydra_dir=None, artifact_uri=None), complete)
+        assert render.drain() == {}
+        deadline = time.monotonic() + 10
+        while not lines and time.monotonic() < deadline:  # said by the pool's thread when the renderer ends it
+            time.sleep(0.01)
+    got = client.get_run(run)
+    assert got.info.status == "FAILED"
+    assert got.data.tags["error"] == "AttributeError: 'NoneType' object has no attribute 'val'"
+    assert artifact_paths(client, run) == {"error.txt", "config/config.yaml"}
+    assert lines == [f"run {run} FAILED: AttributeError: 'NoneType' object has no attribute 'val'"]
+    render.abandon()

@@ -222,3 +222,20 @@ def test_files_uploaded_with_the_runs_artifact_uri_land_where_mlflow_puts_them(m
     for info, text in zip(runs, ("one", "two")):
         assert [f.path for f in client.list_artifacts(info.run_id, "a")] == ["a/b.txt"]
         assert tracking.download_text(client, info.run_id, "a/b.txt") == text
+
+
+def test_a_sweeps_artifacts_in_a_local_store_are_read_as_files_with_the_bytes_mlflow_downloads(finished, monkeypatch):
+    """The ranking and the report read ≈ 50 artifacts at a sweep's end: from a local store as files, where
+    MLflow keeps them, with the same answer as its download — None for an artifact the run lacks."""
+    from maglev.study import store as store_
+
+    folder, run_id = finished
+    sweep = store_.load_sweep(f"sqlite:///{folder}/mlflow.db", "maglev")
+    local = store_.local_artifact(run_id, "model/model.json")
+    assert local is not None and local.is_file()
+    assert store_.local_artifact(run_id, "../../outside.txt") is None  # never a file outside the run's folder
+    read = {p: store_.artifact_bytes(sweep.client, run_id, p) for p in ("model/model.json", "no/such.json")}
+    monkeypatch.setattr(store_, "_ARTIFACT_URIS", {})  # unknown runs: MLflow downloads them
+    assert store_.local_artifact(run_id, "model/model.json") is None
+    assert read == {p: store_.artifact_bytes(sweep.client, run_id, p) for p in read}
+    assert read["model/model.json"].startswith(b"{") and read["no/such.json"] is None

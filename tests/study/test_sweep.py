@@ -337,13 +337,13 @@ def test_failing_run_is_failed_and_the_sweep_goes_on(migrated_store, monkeypatch
     # config cannot foresee happens while estimating: here the estimator fails for order 3
     from maglev.study import job
 
-    def identify(cfg):
+    def estimate_run(cfg):
         if cfg["structure"]["order"] == 3:
             raise ValueError("uniform_wide: orders too large for the data")
         return real(cfg)
 
-    real = job.identify
-    monkeypatch.setattr(job, "identify", identify)
+    real = job.estimate_run
+    monkeypatch.setattr(job, "estimate_run", estimate_run)
     launch(migrated_store, "dataset=uniform_wide", "structure=arx", "structure.order=2,3", *TINY, *LEAN)
     client, _, runs = all_runs(migrated_store)
     kids = {r.data.tags["orders"]: r for r in runs if r.data.tags.get("kind") == "model"}
