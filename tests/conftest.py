@@ -99,6 +99,8 @@ SLOW = (
     "study/test_render.py::test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones",
     "study/test_render.py::test_drain_draws_the_runs_the_busy_renderer_has_not_started",
     "study/test_render.py::test_a_drawing_error_is_tagged_and_the_run_still_finishes",
+    "study/test_render.py::test_a_server_gone_under_the_renderer_ends_the_sweep_with_its_one_line_and_the_renderer_says_nothing",
+    "study/test_faults.py::test_a_server_gone_when_a_job_claims_its_config_ends_the_sweep_in_one_line_and_its_end_writes_nothing",
     "estimation/test_estimate.py::test_monte_carlo_spread_matches_reported_covariance",
     "sim/test_bla.py::test_blas_of_several_classes_are_the_estimates_bla_makes_one_class_at_a_time",
     "sim/test_bla.py::test_a_feature_narrower_than_a_welch_bin_counts_with_the_band_it_occupies",

@@ -345,8 +345,8 @@ class SweepCallback(Callback):
         if self.parent is None:
             return
         shutdown.raise_if_received()  # a signal whose exception was lost: the sweep did not end
+        render.drain()  # the last runs' figures: their runs are FINISHED once drawn (a dead server: _abort at exit)
         atexit.unregister(self._abort)
-        render.drain()  # the last runs' figures: their runs are FINISHED once drawn
         kids = tracking.children(self.client, self.exp_id, self.parent)
         counts: dict[str, int] = {}
         for r in kids:

@@ -128,7 +128,8 @@ def model_description(cfg: dict, m: dict) -> str:
 def record_end(client, tracking_cfg: dict, run_id: str, exc: BaseException, status: str, config_yaml: str) -> None:
     """End a run that died: the ``error`` tag first (one small call), then ``error.txt`` and the config,
     then the status; each step on its own, so that one failing upload loses nothing else.  A server
-    that stopped answering ends the sweep (:class:`maglev.study.tracking.TrackingUnreachable`)."""
+    that stopped answering ends the sweep at the first step that fails, saying nothing else
+    (:class:`maglev.study.tracking.TrackingUnreachable`)."""
     steps = (lambda: tracking.log_batch(client, run_id, tags={"error": f"{type(exc).__name__}: {exc}"[:4000]}),
              lambda: tracking.log_files(client, run_id, {"error.txt": "".join(traceback.format_exception(exc)),
                                                          "config/config.yaml": config_yaml}))
@@ -136,10 +137,10 @@ def record_end(client, tracking_cfg: dict, run_id: str, exc: BaseException, stat
         try:
             step()
         except Exception as err:  # noqa: BLE001 — go on to the status
+            tracking.raise_if_unreachable(tracking_cfg["uri"])
             log.warning("run %s: could not record its error: %s: %s", run_id, type(err).__name__, err)
     try:
         client.set_terminated(run_id, status)
     except Exception:
-        if tracking.is_http(tracking_cfg["uri"]):
-            tracking.check_reachable(tracking_cfg["uri"], float(tracking_cfg.get("timeout_s", 10)))
+        tracking.raise_if_unreachable(tracking_cfg["uri"])
         raise

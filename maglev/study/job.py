@@ -161,12 +161,15 @@ def run(cfg: DictConfig) -> float | None:
                 run_id, holder = claims.claim(client, exp_id, plain["tracking"]["uri"], chash, create)
             else:
                 run_id = create()
+        if holder is not None:
+            claims.reference(client, holder, parent, plain["study"]["name"])
     except BaseException as exc:
         if run_id is not None:  # seen under load: a worker's run left RUNNING when its launcher was killed
             finish.record_end(client, plain["tracking"], run_id, exc, "KILLED", finish.config_text(plain))
+        elif isinstance(exc, Exception):  # a server that died: the sweep's one line, not this job's traceback
+            tracking.raise_if_unreachable(plain["tracking"]["uri"])
         raise
     if holder is not None:
-        claims.reference(client, holder, parent, plain["study"]["name"])
         log.info("%s", skip_message(label, holder, chash))
         return None
     # the rest of the run on the background renderer: a sweep on the basic launcher that goes on after a failure

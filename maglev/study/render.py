@@ -35,6 +35,28 @@ _pool: ProcessPoolExecutor | None = None
 _pending: dict[str, tuple[str, Future, object, Callable]] = {}  # run id -> (tracking URI, its render, inputs, task)
 _figures: dict = {}  # this process's run figures, drawn again for every run (maglev.study.figures.run_figures)
 _lab: tuple[Future, tuple] | None = None  # the sweep's lab steps queued on the renderer, and their arguments
+_gone: BaseException | None = None  # the store's server was found dead here: every later task says so at once
+
+
+def _task(task: Callable, uri: str, *args):
+    """``task(uri, *args)`` as the renderer runs it: when it fails and ``uri`` is a server that no longer
+    answers, :class:`maglev.study.tracking.TrackingUnreachable` instead — printed by nothing here: the launcher
+    gets it (drain raises it: the sweep's one line) — and every later task raises it at once rather than wait
+    out MLflow's retries against the dead server again."""
+    from maglev.study import tracking
+
+    global _gone
+    if _gone is not None:
+        raise _gone
+    try:
+        try:
+            return task(uri, *args)
+        except Exception:
+            tracking.raise_if_unreachable(uri)
+            raise
+    except tracking.TrackingUnreachable as exc:
+        _gone = exc
+        raise
 
 
 def draw_and_finish(uri: str, run_id: str, inputs, client=None) -> None:
@@ -94,7 +116,7 @@ def submit_lab(uri: str, parent: str, task: dict, jobs: list[dict]) -> bool:
         return False
     args = (uri, parent, task, jobs)
     try:
-        _lab = (_pool.submit(_log_lab_here, *args), args)
+        _lab = (_pool.submit(_task, _log_lab_here, *args), args)
     except BrokenProcessPool:
         return False
     return True
@@ -102,13 +124,13 @@ def submit_lab(uri: str, parent: str, task: dict, jobs: list[dict]) -> bool:
 
 def _drain_lab() -> None:
     """Wait for the lab steps queued on the renderer (made here if it has not started them); a failure is
-    a warning, as when the callback makes them."""
+    a warning, as when the callback makes them, and a dead server the sweep's end (``TrackingUnreachable``)."""
     global _lab
     if _lab is None:
         return
     (fut, args), _lab = _lab, None
     try:
-        warning = _log_lab_here(*args) if fut.cancel() else fut.result()
+        warning = _task(_log_lab_here, *args) if fut.cancel() else fut.result()
     except Exception as exc:  # noqa: BLE001 — the renderer died, or the store refused the upload
         warning = f"lab steps not logged: {type(exc).__name__}: {exc}"
     if warning:
@@ -163,7 +185,7 @@ def submit(uri: str, run_id: str, inputs, task: Callable = draw_and_finish) -> N
         if _pool is None:
             start()
         try:
-            fut = _pool.submit(task, uri, run_id, inputs)
+            fut = _pool.submit(_task, task, uri, run_id, inputs)
             _pending[run_id] = (uri, fut, inputs, task)
             fut.add_done_callback(_say)
             return
@@ -187,13 +209,15 @@ def drain() -> dict[str, str]:
     """Wait for every queued render, drawing the runs the renderer has not started yet here, beside it (the
     caller waits anyway, and the renderer lags a few runs behind at a sweep's end); returns ``{run id:
     error}`` for runs that could not be finished (the renderer's process died, or uploading failed): those
-    are marked FAILED with the error, never left RUNNING.  The lab steps queued first are waited for first."""
+    are marked FAILED with the error, never left RUNNING.  The lab steps queued first are waited for first.
+    A server that stopped answering raises :class:`maglev.study.tracking.TrackingUnreachable` (its one line
+    ends the sweep), here or in the renderer."""
     _drain_lab()
     failed = {}
     for run_id in [run_id for run_id, (_, fut, _, _) in _pending.items() if fut.cancel()]:
         uri, _, inputs, task = _pending.pop(run_id)
         try:
-            said = task(uri, run_id, inputs)
+            said = _task(task, uri, run_id, inputs)
             if said:
                 log.error("%s", said)
         except Exception as exc:  # noqa: BLE001 — e.g. the store refused the upload
@@ -215,8 +239,8 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
     ``status`` — those still queued, in flight, and those whose renderer died (SIGTERM reaches it too).
     ``write=False``: mark nothing (the store cannot be reached).  Lab steps not made are left for the next
     launch of the sweep (its parent run lacks ``lab_logged``)."""
-    global _pool, _lab
-    _lab = None
+    global _pool, _lab, _gone
+    _lab = _gone = None
     left = [run_id for run_id, (_, fut, _, _) in _pending.items()
             if not (fut.done() and not fut.cancelled() and fut.exception() is None)]
     if _pool is not None:

@@ -71,8 +71,14 @@ class TrackingUnreachable(SystemExit):
     def __init__(self, uri: str, why: str) -> None:
         global unreachable
         unreachable = uri = public(uri)
+        self.uri, self.why = uri, why
         super().__init__(f"maglev: the MLflow tracking server {uri} cannot be reached ({why}); start it, "
                          "or fix tracking.uri")
+
+    def __reduce__(self):
+        """Rebuilt from its URI and reason: raised in the figure renderer's process, it reaches the launcher
+        as itself (and marks the server unreachable there too), not as a pool that cannot read its answer."""
+        return type(self), (self.uri, self.why)
 
 
 # the URI of a server this process found unreachable (the cleanup at exit then writes nothing: every call
@@ -133,6 +139,15 @@ def check_reachable(uri: str, timeout_s: float, retries: int = 0) -> None:
             return
         why = f"/health answered HTTP {answer.status_code}"
     raise TrackingUnreachable(uri, why)
+
+
+def raise_if_unreachable(uri: str) -> None:
+    """After a store call failed: :class:`TrackingUnreachable` when ``uri`` is a server that does not answer
+    ``/health`` (one try, within this process's MLflow HTTP timeout), so that a server that died in the middle
+    of a sweep ends it with its one line wherever a call first failed; nothing otherwise (the caller raises
+    its own error)."""
+    if is_http(uri):
+        check_reachable(uri, float(os.environ.get("MLFLOW_HTTP_REQUEST_TIMEOUT", HTTP_DEFAULTS["timeout_s"])))
 
 
 def _short(exc: BaseException) -> str:

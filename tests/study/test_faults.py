@@ -114,6 +114,51 @@ def test_a_closed_port_ends_the_sweep_before_its_renderer_and_bla_process_start(
     assert started == []
 
 
+def test_a_server_gone_when_a_job_claims_its_config_ends_the_sweep_in_one_line_and_its_end_writes_nothing(
+        migrated_store, monkeypatch):
+    """A server killed in the middle of a sweep: with a run's validation and uploads on the renderer, the next
+    job's first call to it is often its claim (a search).  Before, that error went to Hydra, which went on to
+    the next job (each waiting out its retries), printed the first one's traceback at the end, and the sweep's
+    end at exit called the dead server again.  Here the store is a local one standing in for the server until
+    the claim, whose call fails as a dead server's does; the URI is a closed port, as the server's would be."""
+    import atexit
+
+    from mlflow.exceptions import MlflowException
+
+    from maglev.study import claims, tracking
+
+    from . import harness
+    from .harness import study_log
+
+    uri = f"http://127.0.0.1:{closed_port()}"
+    local = tracking.connect({"uri": f"sqlite:///{migrated_store}/mlflow.db", "experiment": "maglev",
+                              "artifact_location": str(migrated_store / "artifacts")})
+    monkeypatch.setattr(tracking, "connect", lambda cfg, reuse=False: local)  # the server, until it died
+    monkeypatch.setattr(tracking, "unreachable", None)
+    claimed = []
+
+    def dead(*args):
+        claimed.append(args[3])
+        raise MlflowException(f"API request to {uri}/api/2.0/mlflow/runs/search failed with exception "
+                              "HTTPConnectionPool: Max retries exceeded")
+
+    monkeypatch.setattr(claims, "claim", dead)
+    at_exit = []
+    monkeypatch.setattr(atexit, "register", at_exit.append)  # the sweep's end at exit, called below
+    monkeypatch.setattr(harness, "store_overrides", lambda store: [f"hydra.sweep.dir={store}/multirun"])
+    with pytest.raises(SystemExit) as stopped:
+        launch(migrated_store, "tracking=server", f"tracking.uri={uri}", "dataset=binary_a025", "structure=arx,oe",
+               *TINY, "lab.enabled=false", "tracking.log_figures=false", "study.true_plant=false")
+    assert str(stopped.value.code).startswith(f"maglev: the MLflow tracking server {uri} cannot be reached"), \
+        stopped.value.code
+    assert len(claimed) == 1  # the first job to find the server gone ends the sweep
+    ends = [f for f in at_exit if getattr(f, "__name__", "") == "_abort"]  # SweepCallback._abort
+    assert len(ends) == 1
+    with study_log() as lines:
+        ends[0]()
+    assert lines == []
+
+
 def test_rank_against_a_closed_port_says_so_in_one_line(capsys, monkeypatch):
     from maglev.study.cli import main
 

@@ -127,3 +127,41 @@ def test_a_run_the_renderer_cannot_validate_ends_failed_with_its_error_and_the_l
     assert artifact_paths(client, run) == {"error.txt", "config/config.yaml"}
     assert lines == [f"run {run} FAILED: AttributeError: 'NoneType' object has no attribute 'val'"]
     render.abandon()
+
+
+def test_a_server_gone_under_the_renderer_ends_the_sweep_with_its_one_line_and_the_renderer_says_nothing(
+        monkeypatch, capfd):
+    """A server killed in the middle of a sweep: the renderer's first task to fail on it raises TrackingUnreachable,
+    which reaches the launcher as itself (drain raises it: the sweep's one line); the task queued after it fails at
+    once, and neither process prints anything.  Before: the renderer printed 'could not record its error' twice,
+    the launcher could not read its exception back (a broken pool) and went on calling the dead server."""
+    from maglev.study.finish import Work, complete
+    from maglev.study.identify import Estimated
+
+    from .harness import study_log
+    from .test_faults import closed_port
+
+    uri = f"http://127.0.0.1:{closed_port()}"
+    bounds = tracking.http_env(max_retries=0, timeout_s=2)  # a refused port fails at once, as a killed server's
+    for key, value in bounds.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.setattr(tracking, "unreachable", None)  # set in this process when the renderer's exception arrives
+    render.abandon()
+    render.start(bounds)
+    cfg = {"tracking": {"uri": uri}, "study": {"val_horizon": 1}}
+    broken = Work(Estimated(cfg, None, None, 0.0, 50.0, None), hydra_dir=None, artifact_uri=None)  # fails, then
+    capfd.readouterr()  # its error cannot be recorded: the server is gone
+    with study_log() as lines:
+        for run in ("first", "second"):
+            render.submit(uri, run, broken, complete)
+        futures = [render._pending[run][1] for run in ("first", "second")]
+        deadline = time.monotonic() + 60
+        while not all(fut.done() for fut in futures) and time.monotonic() < deadline:  # both taken by the renderer
+            time.sleep(0.05)
+        assert [type(fut.exception()) for fut in futures] == [tracking.TrackingUnreachable] * 2
+        with pytest.raises(tracking.TrackingUnreachable) as gone:
+            render.drain()
+    render.abandon(write=False)
+    assert str(gone.value).startswith(f"maglev: the MLflow tracking server {uri} cannot be reached (ConnectionError")
+    assert tracking.unreachable == uri  # the sweep's end at exit then writes nothing (callbacks._abort)
+    assert lines == [] and capfd.readouterr().err == ""
