@@ -1,4 +1,4 @@
-"""Run dense linear algebra single-threaded inside the estimators.
+"""Run dense linear algebra single-threaded inside the estimators and the ARX order search.
 
 The estimators factorise tall, skinny matrices (N × 5…30) hundreds of times.  For
 such shapes multi-threaded BLAS gains nothing and, on a machine with other work

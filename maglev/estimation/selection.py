@@ -19,10 +19,12 @@ import pandas as pd
 from ..data import IOData
 from .least_squares import regression
 from ..structures import PolySpec
+from ..threads import single_threaded_blas
 
 TABLE_COLUMNS = ("na", "nb", "nk", "loss", "n_params", "n_estimation")
 
 
+@single_threaded_blas  # ≈ 100 small solves: two BLAS threads on a busy 2-core machine cost 3-18x the CPU
 def arxstruc(
     est: IOData,
     val: IOData,

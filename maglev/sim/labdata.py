@@ -24,6 +24,7 @@ from scipy.io import savemat
 
 from maglev.lab import signals
 from maglev.data import IOData
+from maglev.sim import record_cache
 from maglev.sim.plant import LABEL_TS, U_MAX, U_MIN, Levitator, rig
 from maglev.units import U_UNIT, Y_UNIT
 
@@ -109,12 +110,13 @@ def input_signal(spec: ExperimentSpec) -> np.ndarray:
 
 
 def experiment(name_or_spec: str | ExperimentSpec, seed: int | None = None,
-               plant: Levitator | None = None) -> IOData:
+               plant: Levitator | None = None, *, cache: bool = False) -> IOData:
     """Simulate one experiment, given a catalogue name or a spec; ``seed`` overrides the spec's.
 
     The same seed drives the input signal and the plant's noise, so a (spec, seed)
     pair always gives the same record.  ``plant`` defaults to ``rig()``
-    (the lab's logger, where the staircase's 10 A level reads as 0 A).
+    (the lab's logger, where the staircase's 10 A level reads as 0 A).  ``cache=True``: a
+    record simulated before with the same code is read from disk (:mod:`maglev.sim.record_cache`).
     """
     if isinstance(name_or_spec, str):
         if name_or_spec not in CATALOGUE:
@@ -127,8 +129,12 @@ def experiment(name_or_spec: str | ExperimentSpec, seed: int | None = None,
     if seed is not None:
         spec = replace(spec, seed=int(seed))
     plant = plant or rig()
-    data = plant.simulate(input_signal(spec), Ts=spec.Ts, seed=spec.seed, name=name)
-    return replace(data, meta={**data.meta, "spec": asdict(spec)})
+
+    def simulate() -> IOData:
+        data = plant.simulate(input_signal(spec), Ts=spec.Ts, seed=spec.seed, name=name)
+        return replace(data, meta={**data.meta, "spec": asdict(spec)})
+
+    return record_cache.cached(spec, name, plant, simulate) if cache else simulate()
 
 
 def write_catalogue(out: str | Path, seed: int = 0, plant: Levitator | None = None) -> list[Path]:

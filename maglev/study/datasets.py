@@ -151,7 +151,7 @@ def _estimate_blas(datasets: list[dict]) -> None:
         blas([sim_spec(ds) for ds in members], rig(plant), preprocess=preprocess)
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=32)  # a sweep's records decision reads the simulated lab set's 18 records
 def _simulate(kind, low, high, alpha, duration_s, seed, Ts, name, plant) -> IOData:
     from dataclasses import replace
 
@@ -160,7 +160,7 @@ def _simulate(kind, low, high, alpha, duration_s, seed, Ts, name, plant) -> IODa
 
     spec = sim_spec({"input_class": kind, "low": low, "high": high, "alpha": alpha, "duration_s": duration_s,
                      "seed": seed, "Ts": Ts})
-    return replace(experiment(spec, plant=rig(plant)), name=name)
+    return replace(experiment(spec, plant=rig(plant), cache=True), name=name)
 
 
 def prepare(raw: IOData, pp: dict, name: str) -> Prepared:

@@ -30,7 +30,7 @@ def staircase(lab: dict, data_dir: str, plant: str) -> IOData:
     from maglev.sim.labdata import experiment
     from maglev.sim.plant import rig
 
-    return experiment("working_region", plant=rig(plant))
+    return experiment("working_region", plant=rig(plant), cache=True)
 
 
 def lab_steps(cfg: dict, jobs: list[dict] | None = None) -> tuple[dict, dict, dict]:

@@ -118,6 +118,24 @@ def all_runs(store: Path):
     return client, exp_id, client.search_runs([exp_id], max_results=1000)
 
 
+def model_statuses(store: Path) -> set[str]:
+    """The statuses of the model runs in ``store/mlflow.db`` now, read with sqlite3: what a test polls while a
+    sweep runs (≈ 0.3 ms a poll, where MLflow's client and a search take ≈ 13 ms); empty while the store is
+    missing or being created."""
+    import sqlite3
+
+    db = store / "mlflow.db"
+    if not db.is_file():
+        return set()
+    try:
+        with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1.0)) as con:
+            rows = con.execute("SELECT r.status FROM runs r JOIN tags t ON t.run_uuid = r.run_uuid "
+                               "WHERE t.key = 'kind' AND t.value = 'model'").fetchall()
+    except sqlite3.OperationalError:  # no tables yet, or locked by the migration
+        return set()
+    return {status for (status,) in rows}
+
+
 def artifact_paths(client, run_id: str, path: str | None = None) -> set[str]:
     out = set()
     for a in client.list_artifacts(run_id, path):

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from .harness import LEAN, REPO, TINY, launch, process_env, store_overrides, study_log
+from .harness import LEAN, REPO, TINY, launch, model_statuses, process_env, store_overrides, study_log
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
 SMALL = ["dataset=binary_a025", *TINY, *LEAN]
@@ -49,7 +49,7 @@ def wait_for_model_runs(store: Path, proc: subprocess.Popen, *statuses: str, tim
     """Until the sweep has a model run in each of ``statuses`` at once (e.g. one FINISHED and one in flight)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and proc.poll() is None:
-        if (store / "mlflow.db").exists() and set(statuses) <= {r.info.status for r in runs(store, "model")}:
+        if set(statuses) <= model_statuses(store):
             return
         time.sleep(0.1)
     pytest.fail(f"no model runs {statuses} (exit {proc.poll()}): {(store / 'study.log').read_text()[-3000:]}")

@@ -20,7 +20,7 @@ import pytest
 from maglev.study.shutdown import descendants
 
 from .conftest import start_server, stop_server
-from .harness import LEAN, REPO, TINY, process_env, store_overrides
+from .harness import LEAN, REPO, TINY, model_statuses, process_env, store_overrides
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore:The .*noload.* loader strategy is deprecated")]
 
@@ -93,7 +93,7 @@ def test_kill_9_of_a_parallel_launcher_ends_its_workers_and_their_runs(migrated_
         sweep = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=store,
                                  env=process_env(), start_new_session=True)
     try:
-        wait_for(lambda: sweep.poll() is not None or any(r.info.status == "RUNNING" for r in runs(store, "model")),
+        wait_for(lambda: sweep.poll() is not None or "RUNNING" in model_statuses(store),
                  240, "a run in flight", log)
         below = descendants(sweep.pid)
         assert sweep.poll() is None and below, log.read_text()[-3000:]

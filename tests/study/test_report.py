@@ -22,7 +22,6 @@ import shutil
 import subprocess
 
 import numpy as np
-import pandas as pd
 import pytest
 from scipy.stats import spearmanr
 
@@ -147,16 +146,27 @@ def test_report_is_self_contained(lab_sweep):
     assert "<link" not in page and "<script" not in page and "(figure" not in page  # no missing figures
 
 
-def test_report_cli_reuses_the_ranking_run_of_the_same_runs(lab_sweep, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def cli_report(lab_sweep, tmp_path_factory):
+    """``maglev report --out r.html [--pdf]`` on the sweep's store, once for the file (Chromium prints the PDF the
+    page-count test reads): (page, what it printed, whether a PDF was printed)."""
     from maglev.study.cli import main
     from maglev.study.report.pdf import chromium
 
-    store, reports, _ = lab_sweep
-    out = tmp_path / "r.html"
+    store, _, _ = lab_sweep
+    out = tmp_path_factory.mktemp("cli_report") / "r.html"
     printed = chromium() is not None  # with Chromium, --pdf prints it beside the page and logs it too
-    assert main(["report", "--tracking-uri", f"sqlite:///{store}/mlflow.db", "--out", str(out)]
-                + (["--pdf"] if printed else [])) == 0
-    said = capsys.readouterr().out
+    said = io.StringIO()
+    with contextlib.redirect_stdout(said):
+        code = main(["report", "--tracking-uri", f"sqlite:///{store}/mlflow.db", "--out", str(out)]
+                    + (["--pdf"] if printed else []))
+    assert code == 0, said.getvalue()
+    return out, said.getvalue(), printed
+
+
+def test_report_cli_reuses_the_ranking_run_of_the_same_runs(lab_sweep, cli_report):
+    store, reports, _ = lab_sweep
+    out, said, printed = cli_report
     assert f"report:      {out}" in said and (f"pdf:         {out.with_suffix('.pdf')}" in said) == printed
     assert out.is_file() and "<section id='best-vs-worst'>" in out.read_text()
     assert out.with_suffix(".pdf").is_file() == printed
@@ -382,13 +392,18 @@ def test_figures_are_numbered_in_order_with_captions(lab_sweep):
     assert "shaded bands: 99 % confidence" in page  # the bands are said what they are
 
 
-def test_report_prints_to_at_most_six_a4_pages_before_the_appendix(lab_sweep, tmp_path):
-    from maglev.study.report.pdf import PAGE_LIMIT, chromium, page_texts, pages_before_appendix, print_pdf
+def test_report_prints_to_at_most_six_a4_pages_before_the_appendix(lab_sweep, cli_report):
+    from maglev.study.report.pdf import PAGE_LIMIT, page_texts, pages_before_appendix
 
-    if chromium() is None:
+    out, _, printed = cli_report
+    if not printed:
         pytest.skip("chromium not installed (apt-get install -y chromium): the report is not printed")
     _, reports, _ = lab_sweep
-    pdf = print_pdf(report_file(reports), tmp_path / "report.pdf")
+    def undated(page) -> str:
+        return re.sub(r"\d{4}-\d\d-\d\dT[\d:.]+", "", page.read_text())
+
+    assert undated(out) == undated(report_file(reports))  # the sweep's page (but when it was written), printed
+    pdf = out.with_suffix(".pdf")
     pages = pages_before_appendix(pdf)
     texts = page_texts(pdf)
     # six pages plus the attached code (and the cautions) on one more: the long appendices stay in the HTML
