@@ -356,9 +356,13 @@ def figure_grid(size: tuple[float, float], rows: int = 1, cols: int = 1, sharex:
     """A pyplot-free figure with a fixed ``rows`` × ``cols`` grid of axes: margins and the gaps between panels
     in inches (``MARGINS``, updated by ``margins``), titles and axis labels at fixed places (``LABEL_OFFSETS``,
     updated by ``label_offsets``; :func:`place_labels`).  No layout engine: drawing does not measure every
-    tick label to place the axes, which costs a figure about as much as drawing it.  A figure whose tick
-    labels or titles are longer than the defaults allow asks for wider margins (:func:`text_size` measures a
-    string without drawing it)."""
+    tick label to place the axes, a large part of a figure's cost.  A figure whose tick labels or titles are
+    longer than the defaults allow asks for wider margins (:func:`text_size` measures a string without drawing
+    it)."""
+    for given, known in ((margins, MARGINS), (label_offsets, LABEL_OFFSETS)):
+        unknown = sorted(set(given or {}) - set(known))
+        if unknown:
+            raise ValueError(f"figure_grid: unknown key(s) {unknown}, expected some of {sorted(known)}")
     m = {**MARGINS, **(margins or {})}
     fig = Figure(figsize=size)
     width, height = size
@@ -385,7 +389,7 @@ def place_labels(axis: Axes, x: float, y: float) -> None:
 
 def text_size(text: str, fontsize: str | float = "medium") -> tuple[float, float]:
     """Width and height (inches) of one line of ``text`` in the default font at ``fontsize``, from the font's
-    metrics (no renderer, no figure): what a fixed margin must leave for a tick label of unknown length."""
+    metrics (no renderer, no figure): the room a fixed margin must leave for a label known only at run time."""
     width, height, _ = text_to_path.get_text_width_height_descent(text, FontProperties(size=fontsize), ismath=False)
     return width / 72.0, height / 72.0
 
