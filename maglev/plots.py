@@ -23,7 +23,9 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Rectangle
+from matplotlib.textpath import text_to_path
 from matplotlib.ticker import LogLocator, MaxNLocator
 from matplotlib.transforms import ScaledTranslation
 
@@ -343,41 +345,63 @@ def clear(fig: Figure) -> Figure:
 
 
 # ---------------------------------------------------------------------------- helpers
-MARGINS = {"left": 0.9, "right": 0.25, "bottom": 0.55, "top": 0.35, "gap": 0.75}  # inches
+MARGINS = {"left": 0.9, "right": 0.25, "bottom": 0.55, "top": 0.35, "hgap": 0.75, "wgap": 0.75}  # inches
 # from the axes to the x label's top and to the y label's right edge (inches): below the tick labels, and the
 # y label at the figure's left edge, where every tick label that fits the margin leaves room for it
 LABEL_OFFSETS = {"x": 0.31, "y": 0.65}
 
 
-def _figure(size: tuple[float, float], rows: int, cols: int, sharex: bool = False):
-    """A pyplot-free figure with a fixed grid of axes (margins in inches: no layout engine)."""
+def figure_grid(size: tuple[float, float], rows: int = 1, cols: int = 1, sharex: bool = False,
+                margins: dict[str, float] | None = None, label_offsets: dict[str, float] | None = None) -> np.ndarray:
+    """A pyplot-free figure with a fixed ``rows`` × ``cols`` grid of axes: margins and the gaps between panels
+    in inches (``MARGINS``, updated by ``margins``), titles and axis labels at fixed places (``LABEL_OFFSETS``,
+    updated by ``label_offsets``; :func:`place_labels`).  No layout engine: drawing does not measure every
+    tick label to place the axes, a large part of a figure's cost.  A figure whose tick labels or titles are
+    longer than the defaults allow asks for wider margins (:func:`text_size` measures a string without drawing
+    it)."""
+    for given, known in ((margins, MARGINS), (label_offsets, LABEL_OFFSETS)):
+        unknown = sorted(set(given or {}) - set(known))
+        if unknown:
+            raise ValueError(f"figure_grid: unknown key(s) {unknown}, expected some of {sorted(known)}")
+    m = {**MARGINS, **(margins or {})}
     fig = Figure(figsize=size)
     width, height = size
-    gap = MARGINS["gap"] / 2 if sharex else MARGINS["gap"]  # no tick labels between shared-x panels
+    hgap = m["hgap"] / 2 if sharex else m["hgap"]  # no tick labels between shared-x panels
     fig.subplots_adjust(
-        left=MARGINS["left"] / width, right=1 - MARGINS["right"] / width,
-        bottom=MARGINS["bottom"] / height, top=1 - MARGINS["top"] / height,
-        hspace=gap * rows / max(height - MARGINS["bottom"] - MARGINS["top"] - gap * (rows - 1), 1e-3),
-        wspace=gap * cols / max(width - MARGINS["left"] - MARGINS["right"] - gap * (cols - 1), 1e-3),
+        left=m["left"] / width, right=1 - m["right"] / width,
+        bottom=m["bottom"] / height, top=1 - m["top"] / height,
+        hspace=hgap * rows / max(height - m["bottom"] - m["top"] - hgap * (rows - 1), 1e-3),
+        wspace=m["wgap"] * cols / max(width - m["left"] - m["right"] - m["wgap"] * (cols - 1), 1e-3),
     )
-    axes = fig.subplots(rows, cols, sharex=sharex, squeeze=False).ravel()
-    for axis in axes:  # titles and axis labels at fixed places: drawing does not measure tick labels to place them
-        axis.set_title("", y=1.0)
-        axis.xaxis.set_label_coords(0.5, 0.0, axis.transAxes + ScaledTranslation(0.0, -LABEL_OFFSETS["x"],
-                                                                                  fig.dpi_scale_trans))
-        axis.yaxis.set_label_coords(0.0, 0.5, axis.transAxes + ScaledTranslation(-LABEL_OFFSETS["y"], 0.0,
-                                                                                  fig.dpi_scale_trans))
+    axes = fig.subplots(rows, cols, sharex=sharex, squeeze=False)
+    for axis in axes.ravel():
+        axis.set_title("", y=1.0)  # at the axes' top, not above the tick labels drawing would measure
+        place_labels(axis, **{**LABEL_OFFSETS, **(label_offsets or {})})
     return axes
 
 
+def place_labels(axis: Axes, x: float, y: float) -> None:
+    """The x label's top ``x`` inches below the axes, the y label's right edge ``y`` inches left of them."""
+    inches = axis.figure.dpi_scale_trans
+    axis.xaxis.set_label_coords(0.5, 0.0, axis.transAxes + ScaledTranslation(0.0, -x, inches))
+    axis.yaxis.set_label_coords(0.0, 0.5, axis.transAxes + ScaledTranslation(-y, 0.0, inches))
+
+
+def text_size(text: str, fontsize: str | float = "medium") -> tuple[float, float]:
+    """Width and height (inches) of one line of ``text`` in the default font at ``fontsize``, from the font's
+    metrics (no renderer, no figure): the room a fixed margin must leave for a label known only at run time."""
+    width, height, _ = text_to_path.get_text_width_height_descent(text, FontProperties(size=fontsize), ismath=False)
+    return width / 72.0, height / 72.0
+
+
 def _axes(ax: Axes | None) -> Axes:
-    return _figure((7.0, 4.5), 1, 1)[0] if ax is None else ax
+    return figure_grid((7.0, 4.5))[0, 0] if ax is None else ax
 
 
 def _axes_pair(ax: Sequence[Axes] | None, caller: str, size=(7.0, 6.0), rows: int = 2,
                sharex: bool = False) -> tuple[Axes, Axes]:
     if ax is None:
-        first, second = _figure(size, rows, 3 - rows, sharex)
+        first, second = figure_grid(size, rows, 3 - rows, sharex).ravel()
         return first, second
     pair = list(ax)
     if len(pair) != 2 or not all(isinstance(a, Axes) for a in pair):

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 from maglev.data import IOData
 from maglev.estimation import arx
 from maglev.model import PolyModel
-from maglev.plots import plot_bode, plot_compare, plot_pzmap, plot_resid, plot_step
+from maglev.plots import MARGINS, figure_grid, plot_bode, plot_compare, plot_pzmap, plot_resid, plot_step
 from maglev.uncertainty import frequency_bounds, root_regions, step_bounds
 from maglev.validation import compare, resid
 
@@ -285,3 +285,19 @@ def test_plot_step_with_bounds_and_a_control_system():
     assert ax.get_ylabel() == "y (cm) for a 1 A step"
     with pytest.raises(ValueError, match="one sampling period"):
         plot_step([m, ct.tf([1.0], [1.0, 1.0])])
+
+
+def test_figure_grid_places_its_panels_by_the_margins_in_inches():
+    """Margins and gaps given in inches are where the panels end up, whatever the figure's size; an unknown key
+    is refused with the ones expected."""
+    axes = figure_grid((10.0, 5.0), 2, 3, margins={"left": 1.5, "wgap": 1.0, "hgap": 0.5})
+    fig = axes[0, 0].figure
+    boxes = [[ax.get_position().transformed(fig.transFigure).transformed(fig.dpi_scale_trans.inverted())
+              for ax in row] for row in axes]
+    assert boxes[0][0].x0 == pytest.approx(1.5) and boxes[1][2].x1 == pytest.approx(10.0 - MARGINS["right"])
+    assert boxes[0][1].x0 - boxes[0][0].x1 == pytest.approx(1.0)
+    assert boxes[0][0].y0 - boxes[1][0].y1 == pytest.approx(0.5)
+    assert boxes[1][0].y0 == pytest.approx(MARGINS["bottom"]) and boxes[0][0].y1 == pytest.approx(5.0 - MARGINS["top"])
+    assert fig.get_layout_engine() is None
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['gap'\], expected some of"):
+        figure_grid((6.0, 4.0), margins={"gap": 1.0})

@@ -15,13 +15,15 @@ from maglev.lab.input_design import AlphaChoice, OutputSpectrum
 from maglev.lab.sampling import RiseTime
 from maglev.lab.signals import rbs_spectrum
 from maglev.lab.working_region import WorkingRegion
+from maglev.plots import figure_grid
 from maglev.units import U_UNIT, Y_UNIT
 
 __all__ = ["plot_working_region", "plot_rise_time", "plot_output_spectrum", "plot_alpha"]
 
 
 def _axes(ax: Axes | None) -> Axes:
-    return Figure(figsize=(6, 4), layout="constrained").add_subplot() if ax is None else ax
+    """``ax``, or the axes of a new figure with :mod:`maglev.plots`' fixed layout (no layout engine)."""
+    return figure_grid((6.0, 4.0))[0, 0] if ax is None else ax
 
 
 def plot_working_region(r: WorkingRegion, ax: Axes | None = None, u_unit: str = U_UNIT,

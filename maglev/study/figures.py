@@ -7,16 +7,30 @@ exactly the images the HTML report embeds.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.transforms import ScaledTranslation
 
 from maglev import raster
-from maglev.plots import clear, plot_bode, plot_compare, plot_pzmap, plot_resid, plot_step
+from maglev.plots import (LABEL_OFFSETS, clear, figure_grid, place_labels, plot_bode, plot_compare,
+                          plot_pzmap, plot_resid, plot_step, text_size)
 
 DPI = 150  # the report's figures: at least 150 dpi, sharp in print
 RUN_DPI = 110  # each run's figures, browsed in the MLflow UI (≈ 800 px wide)
 LEVEL = 0.99  # confidence level of every band the study draws
+# the figures' fixed layouts (maglev.plots.figure_grid; inches): room for two-line titles, for the titles of a
+# second row of panels below the first one's x labels, for the y labels of a second column and their wide ticks
+RESID_MARGINS = {"top": 0.6, "hgap": 0.85, "wgap": 0.95}
+ORDERS_MARGINS = {"left": 1.15, "hgap": 0.85, "wgap": 1.15}
+# tick labels wider than the default leaves room for: a long record's AIC (−110000), a loss's 6 × 10⁻⁵
+ORDERS_LABEL_OFFSETS = {"y": 0.9}
+TICK_SPACE = 0.1  # from the axes to a tick label: the tick's length and its pad (3.5 + 3.5 pt)
+LABEL_HEIGHT = 0.2  # an axis label's line at the default font size
+LEGEND_ROW = 0.19  # a legend row at fontsize "small", and the legend's frame and padding:
+LEGEND_FRAME = 0.15
 
 
 def png(fig: Figure, dpi: int = DPI) -> bytes:
@@ -29,8 +43,8 @@ def best_worst_figures(best, worst, resid_best, resid_worst, fit_best: float, fi
     correlations side by side."""
     bode = plot_bode([best, worst], level=LEVEL)
     pz = plot_pzmap([best, worst], level=LEVEL)
-    fig = Figure(figsize=(13, 6), layout="constrained")
-    axes = fig.subplots(2, 2)
+    axes = figure_grid((13.0, 6.0), 2, 2, margins=RESID_MARGINS)
+    fig = axes[0, 0].figure
     for col, (result, model, fit) in enumerate(((resid_best, best, fit_best), (resid_worst, worst, fit_worst))):
         plot_resid(result, ax=(axes[0, col], axes[1, col]))
         axes[0, col].set_title(f"{model.name} (val FIT {fit:.2f} %)\n{axes[0, col].get_title()}",
@@ -40,11 +54,19 @@ def best_worst_figures(best, worst, resid_best, resid_worst, fit_best: float, fi
 
 def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure: str) -> Figure:
     """Validation FIT of the structure's runs by orders and dataset; and, if given, FIT on common data."""
-    fig = Figure(figsize=(12 if common is not None else 7, 4.5), layout="constrained")
-    axes = fig.subplots(1, 2 if common is not None else 1, squeeze=False)[0]
+    datasets = list(dict.fromkeys(comp.sort_values(["input_class", "dataset"])["dataset"]))
+    ncols = min(len(datasets), 2)
+    # the legend hangs below the bar panel's x label: the margin grows with its rows
+    legend_drop = LABEL_OFFSETS["x"] + LABEL_HEIGHT + 0.05
+    margins = {"bottom": legend_drop + LEGEND_ROW * math.ceil(len(datasets) / max(ncols, 1)) + LEGEND_FRAME}
+    if common is not None:
+        heat_margins, heat_labels = _heatmap_layout(common)
+        margins = {**heat_margins, "bottom": max(margins["bottom"], heat_margins["bottom"])}
+    axes = figure_grid((12.0 if common is not None else 7.0, 4.5), 1, 2 if common is not None else 1,
+                       margins=margins)[0]
+    fig = axes[0].figure
     ax = axes[0]
     orders = list(dict.fromkeys(comp["orders"]))
-    datasets = list(dict.fromkeys(comp.sort_values(["input_class", "dataset"])["dataset"]))
     width = 0.8 / max(len(datasets), 1)
     for j, ds in enumerate(datasets):
         # several runs of one dataset and orders (records of other seeds): one bar, their mean
@@ -66,8 +88,9 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
     ax.set_ylabel("one-step FIT on own validation data (%)")
     ax.set_xlabel(f"orders of {structure}")
     ax.set_title(f"{structure}: binary (hatched) vs uniform input", fontsize="medium")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncols=min(len(datasets), 2),
-              fontsize="small")  # below the axes: inside, it covered the bars of FITs near 100 %
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncols=ncols, fontsize="small",
+              bbox_transform=ax.transAxes + ScaledTranslation(0.0, -legend_drop, fig.dpi_scale_trans))
+    # below the axes: inside, it covered the bars of FITs near 100 %
     if common is not None:
         ax2 = axes[1]
         values = common.to_numpy(dtype=float)
@@ -81,8 +104,21 @@ def comparison_figure(comp: pd.DataFrame, common: pd.DataFrame | None, structure
         ax2.set_title("FIT % of each model on each validation set", fontsize="medium")
         ax2.set_xlabel("validation data")
         ax2.set_ylabel("model")
+        place_labels(ax2, **heat_labels)
         fig.colorbar(image, ax=ax2, label="one-step FIT (%)")
     return fig
+
+
+def _heatmap_layout(common: pd.DataFrame) -> tuple[dict[str, float], dict[str, float]]:
+    """The comparison figure's margins and the heatmap's label offsets (inches; :func:`maglev.plots.figure_grid`,
+    :func:`maglev.plots.place_labels`) for its tick labels, measured: the model names left of it (fontsize
+    small), the validation sets' names below it, turned by 30°."""
+    ywidth = max(text_size(str(name), "small")[0] for name in common.index)
+    xwidth, xheight = max(text_size(str(name)) for name in common.columns)
+    turned = TICK_SPACE + xwidth * math.sin(math.radians(30)) + xheight * math.cos(math.radians(30))
+    labels = {"x": turned + 0.05, "y": TICK_SPACE + ywidth + 0.05}
+    margins = {"bottom": labels["x"] + LABEL_HEIGHT + 0.1, "wgap": labels["y"] + LABEL_HEIGHT + 0.15, "right": 0.3}
+    return margins, labels
 
 
 def run_figures(inputs, reuse: dict[str, Figure] | None = None) -> dict:
@@ -137,8 +173,9 @@ def _drawn(reuse: dict[str, Figure] | None, name: str, draw) -> Figure:
 def orders_figure(runs: pd.DataFrame) -> Figure:
     """Loss, AIC and validation FIT against the number of parameters, one row per structure."""
     structures = list(dict.fromkeys(runs["structure"]))
-    fig = Figure(figsize=(12, 2.8 * len(structures)), layout="constrained")
-    axes = fig.subplots(len(structures), 3, squeeze=False)
+    axes = figure_grid((12.0, 2.8 * len(structures)), len(structures), 3, margins=ORDERS_MARGINS,
+                       label_offsets=ORDERS_LABEL_OFFSETS)
+    fig = axes[0, 0].figure
     for i, st in enumerate(structures):
         part = runs[runs["structure"] == st]
         for ds, g in part.groupby("dataset"):

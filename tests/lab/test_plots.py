@@ -13,6 +13,8 @@ from maglev.lab.sampling import rise_time
 from maglev.lab.signals import staircase
 from maglev.lab.working_region import working_region
 
+from ..layout import clash
+
 
 def _vertical_lines(ax) -> list[float]:
     return sorted(float(x[0]) for line in ax.get_lines() for x in [line.get_xdata()]
@@ -63,3 +65,16 @@ def test_spectrum_and_alpha_figures_shade_the_energy_band():
     assert ax.get_xscale() == "log" and ax.get_xlim()[0] < 0.2 / np.pi
     solid = [ln.get_label() for ln in ax.get_lines() if ln.get_linestyle() == "-"]
     assert solid == [f"α = {choice.alpha_star:g} ({max(choice.shares):.0%} in band)"]
+
+
+def test_the_lab_figures_keep_their_texts_apart_without_a_layout_engine():
+    """The fixed layout of maglev.plots: every tick label, axis label, title and legend inside the figure and apart."""
+    levels = np.arange(0, 11, 1.0)
+    wr = working_region(staircase(levels, 20), staircase(np.clip(levels, 3, 7.5) * 2.0 + 7.9, 20), 11, 50)
+    k = np.arange(300)
+    rt = rise_time(IOData(np.r_[np.zeros(300), np.ones(300)], np.r_[np.zeros(300), 1 - np.exp(-k / 15.0)], 0.001))
+    spec = output_spectrum(np.sin(2 * np.pi * 200 / 4096 * np.arange(4096)), fraction=0.8)
+    for fig in (plots.plot_working_region(wr), plots.plot_rise_time(rt), plots.plot_output_spectrum(spec),
+                plots.plot_alpha(choose_alpha((0.2, 0.9)))):
+        assert fig.get_layout_engine() is None
+        assert clash(fig) == []

@@ -1,10 +1,14 @@
-"""The ranking's binary-vs-uniform figure (:func:`maglev.study.figures.comparison_figure`)."""
+"""The ranking's binary-vs-uniform figure (:func:`maglev.study.figures.comparison_figure`), the report's orders
+figure, and their fixed layouts: no layout engine, and still nothing clipped or overlapping."""
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
-from maglev.study.figures import comparison_figure
+from maglev.study.figures import comparison_figure, orders_figure
+
+from ..layout import clash
 
 
 def _bars(fig):
@@ -26,6 +30,32 @@ def test_several_runs_of_a_dataset_and_orders_draw_their_mean():
                          "val_fit": [80.0, 70.0, 85.0, 86.0, 90.0, 95.0]})
     bars = _bars(comparison_figure(comp, None, "oe"))
     assert bars == {"bin (binary)": [90.0, 95.0], "uni (uniform), mean of up to 2 runs": [75.0, 85.5]}
+
+
+def test_the_comparison_figure_leaves_its_long_names_room_without_a_layout_engine():
+    """Models and records with long names (the real records'), three datasets (a two-row legend below the bars):
+    the margins measured from the names keep every tick label, axis label, title and legend inside the figure
+    and apart."""
+    names = ["real_binary_signal_10", "real_white_noise_1", "real_white_noise_2"]
+    comp = pd.DataFrame({"dataset": names * 2, "input_class": ["binary", "uniform", "uniform"] * 2,
+                         "orders": ["[2 2 2 2 2]"] * 3 + ["[7 7 7 7 2]"] * 3,
+                         "val_fit": [91.8, 72.4, 70.9, 99.1, -3.2, 75.0]})
+    common = pd.DataFrame(np.arange(9.0).reshape(3, 3) * 10, columns=[f"{n}[val]" for n in names],
+                          index=[f"armax 7-7-7-2 · {n}" for n in names])
+    for fig in (comparison_figure(comp, common, "armax"), comparison_figure(comp, None, "armax")):
+        assert fig.get_layout_engine() is None
+        assert clash(fig) == []
+
+
+def test_the_orders_figure_leaves_wide_tick_labels_room_without_a_layout_engine():
+    """Four structures, log-scale losses (tick labels such as 6 × 10⁻⁵) and six-digit AICs of long records."""
+    rows = [{"structure": st, "dataset": ds, "n_params": n, "loss": 10.0 ** (-5 + k / 3 - n / 8),
+             "aic": -115000.0 + 900 * n * (k + 1), "val_fit": 90.0 - n - 40 * k}
+            for st in ("arx", "armax", "oe", "bj") for k, ds in enumerate(("uniform_narrow", "binary_a025"))
+            for n in range(4, 15, 2)]
+    fig = orders_figure(pd.DataFrame(rows))
+    assert fig.get_layout_engine() is None
+    assert clash(fig) == []
 
 
 def _run_inputs(*overrides: str):
