@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["project_root", "refdata_dir", "default_store_uri", "reports_dir", "cache_root"]
+__all__ = ["project_root", "refdata_dir", "default_store_uri", "reports_dir", "cache_root", "save_npz"]
 
 
 def project_root() -> Path:
@@ -47,3 +47,19 @@ def cache_root() -> Path:
     ``~/.cache/maglev`` (best linear approximations, the empty MLflow store)."""
     root = os.environ.get("MAGLEV_CACHE")
     return Path(root) if root else Path.home() / ".cache" / "maglev"
+
+
+def save_npz(path: Path, **arrays) -> bool:
+    """Write ``arrays`` to the cache entry ``path`` (``numpy.savez``) atomically: a temporary file beside it, then
+    renamed, since processes share the cache.  False when it could not be written (an unwritable directory only
+    costs the next caller the computation)."""
+    import numpy as np
+
+    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(tmp, **arrays)
+        os.replace(tmp, path)
+    except OSError:
+        return False
+    return True

@@ -364,6 +364,7 @@ def figure_grid(size: tuple[float, float], rows: int = 1, cols: int = 1, sharex:
         if unknown:
             raise ValueError(f"figure_grid: unknown key(s) {unknown}, expected some of {sorted(known)}")
     m = {**MARGINS, **(margins or {})}
+    offsets = {**LABEL_OFFSETS, **(label_offsets or {})}
     fig = Figure(figsize=size)
     width, height = size
     hgap = m["hgap"] / 2 if sharex else m["hgap"]  # no tick labels between shared-x panels
@@ -376,7 +377,7 @@ def figure_grid(size: tuple[float, float], rows: int = 1, cols: int = 1, sharex:
     axes = fig.subplots(rows, cols, sharex=sharex, squeeze=False)
     for axis in axes.ravel():
         axis.set_title("", y=1.0)  # at the axes' top, not above the tick labels drawing would measure
-        place_labels(axis, **{**LABEL_OFFSETS, **(label_offsets or {})})
+        place_labels(axis, **offsets)
     return axes
 
 

@@ -33,7 +33,6 @@ import contextlib
 import hashlib
 import json
 import math
-import os
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -42,7 +41,7 @@ import numpy as np
 
 from maglev.data import IOData
 from maglev.locks import exclusive
-from maglev.paths import cache_root
+from maglev.paths import cache_root, save_npz
 from maglev.spectral import FrequencyResponse, Preprocess, segment_length, spectra
 from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.sim.plant import Levitator, rig
@@ -187,11 +186,7 @@ def _save(path: Path, est: BLA) -> None:
     meta = {"Ts": est.Ts, "averages": est.averages, "spec": asdict(est.spec),
             "preprocess": asdict(est.preprocess), "realisations": est.realisations,
             "distortion_variance": est.distortion_variance, "output_variance": est.output_variance}
-    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    with contextlib.suppress(OSError):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(tmp, meta=json.dumps(meta), **{k: getattr(est, k) for k in _ARRAYS})
-        os.replace(tmp, path)
+    save_npz(path, meta=json.dumps(meta), **{k: getattr(est, k) for k in _ARRAYS})
 
 
 def _load(path: Path) -> BLA | None:

@@ -26,7 +26,7 @@ import numpy as np
 import scipy
 
 from maglev.data import IOData
-from maglev.paths import cache_root
+from maglev.paths import cache_root, save_npz
 
 __all__ = ["cache_dir", "cache_key", "cached", "KEEP"]
 
@@ -64,12 +64,8 @@ def _save(path: Path, data: IOData) -> None:
     """Write ``data`` (atomically: processes share the directory); an unwritable directory only costs the
     next launch the simulation."""
     meta = {k: v for k, v in data.meta.items() if k not in _ARRAYS}
-    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    with contextlib.suppress(OSError):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(tmp, u=data.u, y=data.y, meta=json.dumps({"Ts": data.Ts, "name": data.name, "meta": meta}),
-                 **{k: data.meta[k] for k in _ARRAYS if k in data.meta})
-        os.replace(tmp, path)
+    if save_npz(path, u=data.u, y=data.y, meta=json.dumps({"Ts": data.Ts, "name": data.name, "meta": meta}),
+                **{k: data.meta[k] for k in _ARRAYS if k in data.meta}):
         _prune(path.parent)
 
 
@@ -88,7 +84,10 @@ def _load(path: Path) -> IOData | None:
 
 def _prune(directory: Path) -> None:
     """Remove the least recently used entries beyond :data:`KEEP`."""
-    entries = sorted(directory.glob("*.npz"), key=lambda p: p.stat().st_mtime, reverse=True)
+    try:
+        entries = sorted(directory.glob("*.npz"), key=lambda p: p.stat().st_mtime, reverse=True)
+    except OSError:  # an entry removed meanwhile by another process: prune at the next write
+        return
     for old in entries[KEEP:]:
         with contextlib.suppress(OSError):
             old.unlink()

@@ -81,3 +81,17 @@ def test_the_least_recently_used_entries_beyond_keep_are_removed(cache_here, mon
         if age == 1:
             labdata.experiment(specs[0], cache=True)  # read again: the first is now the most recently used
     assert sorted(cache_here.glob("*.npz")) == sorted([paths[0], paths[2]])
+
+
+def test_an_entry_is_written_whole_or_not_at_all(tmp_path):
+    """maglev.paths.save_npz, which the BLA cache uses too: a file beside the entry renamed over it (no temporary
+    file left), and False where the directory cannot be written (a file stands where it should be)."""
+    from maglev.paths import save_npz
+
+    path = tmp_path / "cache" / "entry.npz"
+    assert save_npz(path, a=np.arange(3.0))
+    assert [p.name for p in path.parent.iterdir()] == ["entry.npz"]
+    with np.load(path) as z:
+        assert np.array_equal(z["a"], np.arange(3.0))
+    (tmp_path / "blocked").write_text("a file, not a directory")
+    assert not save_npz(tmp_path / "blocked" / "entry.npz", a=np.arange(3.0))

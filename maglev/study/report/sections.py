@@ -250,6 +250,8 @@ def data_amounts(table_: pd.DataFrame, datasets: dict, configs: dict, decisions:
                 f"the others'. Units: u is the coil current command in {U_UNIT}, y the upper magnet's height in "
                 f"{Y_UNIT}.")
     return section("data", "4. Amount of data", text, table(pd.DataFrame(rows)), decision(decisions, "data_length"))
+
+
 def delay_evidence(models: Sequence[PolyModel], delayest_nk: int | None = None, rejected: Sequence[int] = ()) -> str:
     """Whether the identified models support their delay: how many have a first B coefficient b_nk more than
     two standard errors from zero (a response already at lag nk), against ``delayest``'s nk when given.  When most
