@@ -16,7 +16,7 @@ The resolver ``${maglev.root:}`` gives the project root (:func:`maglev.paths.pro
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, make_dataclass
+from dataclasses import dataclass, field, fields as schema_fields, make_dataclass
 from enum import Enum
 from typing import Any, Optional
 
@@ -195,12 +195,20 @@ def register_structure(name: str) -> type:
     return STRUCTURE_SCHEMAS[name]
 
 
+SECTIONS = {"tracking": TrackingCfg, "lab": LabCfg, "study": StudyCfg}  # Config's sections of one schema each
+
+
+def _carries(cfg: DictConfig, schemas: dict[str, type]) -> bool:
+    """Whether ``cfg`` has exactly ``Config``'s keys and each section named in ``schemas`` already that schema."""
+    return (set(cfg) == {f.name for f in schema_fields(Config)}
+            and all(key in cfg and OmegaConf.get_type(cfg, key) is schema for key, schema in schemas.items()))
+
+
 def typed(cfg: DictConfig) -> DictConfig:
     """Re-apply the schemas to a config that has lost them (e.g. one loaded from a YAML file).
 
     Raises the same ``ValidationError``/``ConfigKeyError`` naming the key as composition does.
     """
-    base = OmegaConf.structured(Config)
     ds_kind = OmegaConf.select(cfg, "dataset.source", default="sim")
     st_kind = OmegaConf.select(cfg, "structure.name", default="arx")
     if ds_kind not in DATASET_SCHEMAS:
@@ -208,6 +216,9 @@ def typed(cfg: DictConfig) -> DictConfig:
     if st_kind not in structure_names():
         raise ValueError(f"structure.name must be one of {list(structure_names())}, got {st_kind!r}")
     register_structure(st_kind)
+    if _carries(cfg, {"dataset": DATASET_SCHEMAS[ds_kind], "structure": STRUCTURE_SCHEMAS[st_kind], **SECTIONS}):
+        return cfg  # as Hydra composed it: merging the same schemas again would change nothing (≈ 10 ms a job)
+    base = OmegaConf.structured(Config)
     base.dataset = OmegaConf.structured(DATASET_SCHEMAS[ds_kind])
     base.structure = OmegaConf.structured(STRUCTURE_SCHEMAS[st_kind])
     return OmegaConf.merge(base, cfg)

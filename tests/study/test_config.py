@@ -148,6 +148,23 @@ def test_schema_is_reapplied_to_a_saved_config():
         schema.typed(saved)
 
 
+@pytest.mark.parametrize("dataset", ["binary_a025", "real_binary_signal_2"])
+@pytest.mark.parametrize("name", ["arx", "armax", "oe", "bj"])
+def test_a_composed_config_already_has_the_schemas_typed_would_merge(dataset, name):
+    """typed() returns a config as Hydra composed it, whose schema merge would change nothing, and merges
+    the schemas into the same config read back from YAML (which has lost them): the same plain config."""
+    cfg = cfg_for([f"dataset={dataset}", f"structure={name}"])
+    composed = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    merged = OmegaConf.merge(OmegaConf.structured(schema.Config), {
+        "dataset": OmegaConf.structured(schema.DATASET_SCHEMAS[composed.dataset.source]),
+        "structure": OmegaConf.structured(schema.register_structure(name))}, composed)
+    saved = OmegaConf.create(OmegaConf.to_yaml(composed))
+    assert schema.typed(composed) is composed and schema.typed(saved) is not saved
+    assert OmegaConf.get_type(schema.typed(saved), "structure") is schema.register_structure(name)
+    assert plain_config(composed) == plain_config(saved) == OmegaConf.to_container(
+        merged, resolve=True, enum_to_str=True, throw_on_missing=True)
+
+
 def test_config_hash_ignores_shorthand_tracking_and_names():
     a = task(cfg_for(["structure=bj", "structure.order=2"]))
     b = task(cfg_for(["structure=bj", "structure.order=3", "structure.nb=2", "structure.nc=2",
