@@ -24,8 +24,7 @@ import numpy as np
 import pandas as pd
 
 from maglev.study.cautions import Caution, cautions
-from maglev.study.store import (Sweep, SweepError, artifact_bytes, artifact_json, dataset_configs, load_model,
-                                run_config)
+from maglev.study.store import Sweep, SweepError, artifact_bytes, artifact_json, dataset_configs
 from maglev.study.tracking import log_files
 from maglev.validation import ResidResult
 
@@ -163,13 +162,13 @@ class Ranking:
 
 def run_resid(sweep: Sweep, row: pd.Series, model):
     """The run's residual analysis: its ``resid/resid.json``, else recomputed from its logged config."""
-    logged = artifact_json(sweep.client, row["run_id"], "resid/resid.json")
+    logged = sweep.artifact_json(row["run_id"], "resid/resid.json")
     if logged is not None:
         return ResidResult.from_dict(logged)
     from maglev.study.datasets import load
     from maglev.validation import resid
 
-    cfg = run_config(sweep.client, row["run_id"])
+    cfg = sweep.config(row["run_id"])
     prep = load(cfg["dataset"], cfg["data_dir"])
     return resid(prep.val, model, lags=int(cfg["study"]["resid_lags"]))
 
@@ -200,7 +199,7 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
         return ranked
     table, chosen, comp, notes = ranked.table, ranked.structure, ranked.comparison, list(ranked.notes)
     wanted = [table.iloc[0], table.iloc[-1]] + ([r for _, r in comp.iterrows()] if comp is not None else [])
-    models = {r["run_id"]: load_model(sweep.client, r["run_id"]) for r in wanted}
+    models = {r["run_id"]: sweep.model(r["run_id"]) for r in wanted}
     best, worst = table.iloc[0], table.iloc[-1]
     resids = {r["run_id"]: run_resid(sweep, r, models[r["run_id"]]) for r in (best, worst)}
     configs, cross = {}, None

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import tempfile
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
@@ -37,10 +37,28 @@ class Sweep:
     parent: object  # mlflow.entities.Run
     runs: pd.DataFrame
     ignored: dict[str, int]  # status -> number of model runs not FINISHED
+    # the artifact URIs of the parent and model runs: a local store's artifacts are then read as files, not
+    # downloaded (MLflow reads the whole run back for each download: ≈ 20 ms of the ≈ 50 a sweep's end reads)
+    artifact_uris: dict[str, str] = field(default_factory=dict)
 
     @property
     def parent_id(self) -> str:
         return self.parent.info.run_id
+
+    def artifact(self, run_id: str, path: str) -> bytes | None:
+        """The content of one artifact of a run of this store (:func:`artifact_bytes`)."""
+        return artifact_bytes(self.client, run_id, path, self.artifact_uris.get(run_id))
+
+    def artifact_json(self, run_id: str, path: str) -> dict | None:
+        return artifact_json(self.client, run_id, path, self.artifact_uris.get(run_id))
+
+    def model(self, run_id: str):
+        """The run's fitted ``PolyModel`` (:func:`load_model`)."""
+        return load_model(self.client, run_id, self.artifact_uris.get(run_id))
+
+    def config(self, run_id: str) -> dict:
+        """The resolved config the run logged (:func:`run_config`)."""
+        return run_config(self.client, run_id, self.artifact_uris.get(run_id))
 
     @property
     def name(self) -> str:
@@ -157,22 +175,17 @@ def load_sweep(uri: str, experiment: str, parent_id: str | None = None, reap: bo
                          f"({detail})")
     from maglev.study.credentials import public
 
-    _ARTIFACT_URIS.update({r.info.run_id: r.info.artifact_uri for r in [parent, *kids]})
     return Sweep(client=client, uri=public(uri), experiment_id=exp_id, experiment=experiment, parent=parent,
-                 runs=model_rows(finished), ignored=ignored)
+                 runs=model_rows(finished), ignored=ignored,
+                 artifact_uris={r.info.run_id: r.info.artifact_uri for r in [parent, *kids]})
 
 
-# artifact URIs of the runs read by load_sweep: a local store's artifacts are then read as files, not downloaded
-# (MLflow reads the whole run back for each download: ≈ 20 ms of the ≈ 50 artifacts a sweep's end reads)
-_ARTIFACT_URIS: dict[str, str] = {}
-
-
-def local_artifact(run_id: str, path: str) -> Path | None:
-    """Where a run of a local artifact store (``file://``) keeps the artifact ``path``; None if the run's
-    artifacts are elsewhere (a server) or its URI was not read."""
+def local_artifact(artifact_uri: str | None, path: str) -> Path | None:
+    """Where a run whose artifacts are at ``artifact_uri`` keeps the artifact ``path``, if that is a local
+    folder (``file://``); None for artifacts elsewhere (a server) or an unknown URI."""
     from urllib.parse import unquote, urlparse
 
-    uri = urlparse(_ARTIFACT_URIS.get(run_id, ""))
+    uri = urlparse(artifact_uri or "")
     if uri.scheme != "file" or uri.netloc not in ("", "localhost"):
         return None
     root = Path(unquote(uri.path))
@@ -180,11 +193,12 @@ def local_artifact(run_id: str, path: str) -> Path | None:
     return local if root.resolve() in local.resolve().parents else None
 
 
-def artifact_bytes(client, run_id: str, path: str) -> bytes | None:
-    """The content of one artifact, or None when the run has no such artifact."""
+def artifact_bytes(client, run_id: str, path: str, artifact_uri: str | None = None) -> bytes | None:
+    """The content of one artifact, or None when the run has no such artifact; read as a file when the run's
+    ``artifact_uri`` is a local folder, else downloaded."""
     from mlflow.exceptions import MlflowException
 
-    local = local_artifact(run_id, path)
+    local = local_artifact(artifact_uri, path)
     if local is not None:
         return local.read_bytes() if local.is_file() else None
     with tempfile.TemporaryDirectory(prefix="maglev-rank-") as tmp:
@@ -195,12 +209,12 @@ def artifact_bytes(client, run_id: str, path: str) -> bytes | None:
         return Path(local).read_bytes() if Path(local).is_file() else None
 
 
-def artifact_json(client, run_id: str, path: str) -> dict | None:
-    raw = artifact_bytes(client, run_id, path)
+def artifact_json(client, run_id: str, path: str, artifact_uri: str | None = None) -> dict | None:
+    raw = artifact_bytes(client, run_id, path, artifact_uri)
     return None if raw is None else json.loads(raw)
 
 
-def run_config(client, run_id: str) -> dict:
+def run_config(client, run_id: str, artifact_uri: str | None = None) -> dict:
     """The resolved config a run logged (``config/config.yaml``), with the study's schema re-applied (a
     simulated dataset logged before ``dataset.plant`` existed keeps the simulator of that time)."""
     from omegaconf import OmegaConf
@@ -208,7 +222,7 @@ def run_config(client, run_id: str) -> dict:
     from maglev.study.config import plain_config
     from maglev.study.datasets import UNNAMED_PLANT
 
-    raw = artifact_bytes(client, run_id, "config/config.yaml")
+    raw = artifact_bytes(client, run_id, "config/config.yaml", artifact_uri)
     if raw is None:
         raise SweepError(f"run {run_id} has no config/config.yaml artifact")
     cfg = OmegaConf.create(raw.decode())
@@ -218,11 +232,11 @@ def run_config(client, run_id: str) -> dict:
     return plain_config(cfg)
 
 
-def load_model(client, run_id: str):
+def load_model(client, run_id: str, artifact_uri: str | None = None):
     """The run's fitted ``PolyModel`` (``model/model.json``)."""
     from maglev.model import PolyModel
 
-    raw = artifact_bytes(client, run_id, "model/model.json")
+    raw = artifact_bytes(client, run_id, "model/model.json", artifact_uri)
     if raw is None:
         raise SweepError(f"run {run_id} has no model/model.json artifact")
     return PolyModel.from_json(raw.decode())
@@ -232,5 +246,5 @@ def dataset_configs(sweep: Sweep) -> dict[str, dict]:
     """One logged run config per dataset of the sweep (enough to rebuild that dataset)."""
     out: dict[str, dict] = {}
     for name, group in sweep.runs.groupby("dataset", sort=True):
-        out[str(name)] = run_config(sweep.client, group["run_id"].iloc[0])
+        out[str(name)] = sweep.config(group["run_id"].iloc[0])
     return out

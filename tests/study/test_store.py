@@ -231,11 +231,11 @@ def test_a_sweeps_artifacts_in_a_local_store_are_read_as_files_with_the_bytes_ml
 
     folder, run_id = finished
     sweep = store_.load_sweep(f"sqlite:///{folder}/mlflow.db", "maglev")
-    local = store_.local_artifact(run_id, "model/model.json")
+    uri = sweep.artifact_uris[run_id]  # the sweep carries the URIs it read with its runs
+    local = store_.local_artifact(uri, "model/model.json")
     assert local is not None and local.is_file()
-    assert store_.local_artifact(run_id, "../../outside.txt") is None  # never a file outside the run's folder
-    read = {p: store_.artifact_bytes(sweep.client, run_id, p) for p in ("model/model.json", "no/such.json")}
-    monkeypatch.setattr(store_, "_ARTIFACT_URIS", {})  # unknown runs: MLflow downloads them
-    assert store_.local_artifact(run_id, "model/model.json") is None
-    assert read == {p: store_.artifact_bytes(sweep.client, run_id, p) for p in read}
+    assert store_.local_artifact(uri, "../../outside.txt") is None  # never a file outside the run's folder
+    read = {p: sweep.artifact(run_id, p) for p in ("model/model.json", "no/such.json")}
+    monkeypatch.setattr(store_, "local_artifact", lambda uri, path: pytest.fail("read as a file") if uri else None)
+    assert read == {p: store_.artifact_bytes(sweep.client, run_id, p) for p in read}  # no URI: MLflow downloads
     assert read["model/model.json"].startswith(b"{") and read["no/such.json"] is None

@@ -25,7 +25,7 @@ from pathlib import Path
 from maglev.paths import reports_dir
 from maglev.study.ranking import Ranking, compute, log_ranking, previous_ranking_run, report_name, top_text, ui_hint
 from maglev.study.report import sections as sec
-from maglev.study.store import SweepError, artifact_bytes, artifact_json, load_model, load_sweep
+from maglev.study.store import SweepError, load_sweep
 from maglev.study.tracking import log_files
 
 LAB_FIGURES = ("working_region.png", "rise_time.png", "output_spectrum.png", "alpha.png", "orders.png")
@@ -66,8 +66,8 @@ def lab_steps(ranking: Ranking) -> tuple[dict, dict]:
     """The parent run's lab-level numbers (metrics and ``lab/lab.json``) and figures (name -> PNG)."""
     sweep = ranking.sweep
     lab = {k: v for k, v in sweep.parent.data.metrics.items() if k.startswith("lab.")}
-    lab.update(artifact_json(sweep.client, sweep.parent_id, "lab/lab.json") or {})
-    figures = {name: artifact_bytes(sweep.client, sweep.parent_id, f"lab/{name}") for name in LAB_FIGURES}
+    lab.update(sweep.artifact_json(sweep.parent_id, "lab/lab.json") or {})
+    figures = {name: sweep.artifact(sweep.parent_id, f"lab/{name}") for name in LAB_FIGURES}
     return lab, figures
 
 
@@ -76,7 +76,7 @@ def lab_decisions(ranking: Ranking) -> dict:
     ``lab/decisions.json``); {} when the sweep logged none."""
     from maglev.lab.decision import read_decisions
 
-    return read_decisions(artifact_json(ranking.sweep.client, ranking.sweep.parent_id, DECISIONS))
+    return read_decisions(ranking.sweep.artifact_json(ranking.sweep.parent_id, DECISIONS))
 
 
 def physics(ranking: Ranking, lab: dict, ts_used: list[float]):
@@ -107,7 +107,7 @@ def build(ranking: Ranking, ranking_run: str) -> str:
     datasets = {n: load(c["dataset"], c["data_dir"]) for n, c in sorted(ranking.configs.items())}
     if not datasets:
         raise SweepError("cannot rebuild the sweep's datasets for the report: " + "; ".join(ranking.notes))
-    models = {**{rid: load_model(sweep.client, rid) for rid in ranking.table["run_id"]
+    models = {**{rid: sweep.model(rid) for rid in ranking.table["run_id"]
                  if rid not in ranking.models}, **ranking.models}
     ts_used = sorted(set(float(t) for t in ranking.table["Ts"].dropna())) if "Ts" in ranking.table else []
     params, lin, noise = physics(ranking, lab, ts_used)
@@ -207,7 +207,7 @@ def rank_and_report(uri: str, experiment: str, parent: str | None, structure: st
                   f"(unchanged)\nMLflow UI:   {ui_hint(sweep, previous)}", flush=True)
             return previous, path.resolve()
     ranking = compute(sweep, structure, ranked=quick)
-    decisions = with_orders(artifact_json(sweep.client, sweep.parent_id, "lab/decisions.json"), ranking.orders)
+    decisions = with_orders(sweep.artifact_json(sweep.parent_id, "lab/decisions.json"), ranking.orders)
     if decisions:  # the last decision of lab/decisions.json, made from the ranked runs
         log_files(sweep.client, sweep.parent_id, {"lab/decisions.json": decisions})
     run_id = ranking_run_for(ranking)
