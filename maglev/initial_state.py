@@ -44,16 +44,18 @@ def fit_initial_state(
     combination of free responses that minimises its squared norm.  "estimate",
     "backcast" and "auto" all fit the state here (they differ only in how
     :mod:`maglev.estimation` counts and uses it); "zero" returns no correction.
+    A 2-D ``residual`` holds one record per row, each with its own state (one
+    least-squares solve for all of them).
     """
     correction = np.zeros_like(residual)
     if mode == "zero":
         return correction, 0
-    phi = free_response_matrix(filters, residual.size)
+    phi = free_response_matrix(filters, residual.shape[-1])
     if phi.size == 0:
         return correction, 0
     m = phi.shape[0]
-    x, _, rank, _ = np.linalg.lstsq(phi, residual[:m], rcond=1e-10)
-    correction[:m] = phi @ x
+    x, _, rank, _ = np.linalg.lstsq(phi, residual[..., :m].T, rcond=1e-10)
+    correction[..., :m] = (phi @ x).T
     return correction, int(rank)
 
 

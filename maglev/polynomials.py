@@ -27,11 +27,11 @@ def n_states(num: np.ndarray, den: np.ndarray) -> int:
 
 
 def filt(num: np.ndarray, den: np.ndarray, x: np.ndarray, zi: np.ndarray | None = None) -> np.ndarray:
-    """Filter ``x`` through ``num(q⁻¹)/den(q⁻¹)``; ``zi`` are the filter's initial states."""
+    """Filter ``x`` (along its last axis) through ``num(q⁻¹)/den(q⁻¹)``; ``zi`` are the filter's initial states."""
     n = n_states(num, den)
     if n == 0:
         return (num[0] / den[0]) * x
-    if zi is None and len(den) == 1:  # FIR: a direct convolution is several times faster
+    if zi is None and len(den) == 1 and np.ndim(x) == 1:  # FIR: a direct convolution is several times faster
         return np.convolve(x, np.asarray(num, dtype=float) / den[0])[: len(x)]
     num, den = _pad(num, n + 1), _pad(den, n + 1)
     if zi is None:

@@ -40,8 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from maglev.data import IOData
+from maglev.initial_state import fit_initial_state
 from maglev.locks import exclusive
 from maglev.paths import cache_root, save_npz
+from maglev.polynomials import filt, is_stable
 from maglev.spectral import FrequencyResponse, Preprocess, segment_length, spectra
 from maglev.sim.labdata import ExperimentSpec, input_signal
 from maglev.sim.plant import Levitator, rig
@@ -344,15 +346,15 @@ def _validation_records(ref: BLA, n: int, records: int) -> list[IOData]:
     return out
 
 
-def record_distance(simulate: Callable[[IOData], np.ndarray], ref: BLA, n: int, records: int = RECORDS) -> float:
+def record_distance(G: tuple[np.ndarray, np.ndarray], ref: BLA, n: int, records: int = RECORDS) -> float:
     """A model's distance to the BLA as a simulation FIT on ``n``-sample records of the class sees it.
 
         sqrt( Σ_k ‖G_BLA u_k − ŷ_k‖² / Σ_k ‖G_BLA u_k‖² )
 
-    over :func:`validation_records` (u_k the record's input, G_BLA u_k its BLA output), where
-    ``simulate(record)`` is the model's simulation of a record with its initial state fitted
-    to the record's y, as MATLAB's ``compare`` scores a model (for a PolyModel:
-    ``lambda d: model.predict(d, math.inf, "estimate")``).
+    over :func:`validation_records` (u_k the record's input, G_BLA u_k its BLA output), where ŷ_k is
+    the model's G = num/den (``G``, in q⁻¹: ``PolyModel.G_polys``) simulated on the record with its
+    initial state fitted to the record's y, as MATLAB's ``compare`` scores a model
+    (``model.predict(record, math.inf, "estimate")``, here for all records at once).
 
     Why not :func:`weighted_distance` alone: that is the error of a stationary simulation,
     over all time.  On a record of finite length whose initial state is fitted, a part of
@@ -365,9 +367,15 @@ def record_distance(simulate: Callable[[IOData], np.ndarray], ref: BLA, n: int, 
     [5 5 2] (a pole-zero pair at 0.9994/0.99996, time constant ≈ 3.4 s) is 0.188 from the BLA
     stationary and 0.130 on those records; models without slow modes move by < 0.01.
     """
+    num, den = (np.asarray(p, dtype=float) for p in G)
+    if not is_stable(den):
+        raise ValueError("record_distance: G's denominator has a root on or outside the unit circle, so a "
+                         "simulation from a fitted initial state diverges")
     recs = validation_records(ref, n, records)
-    err = sum(float(np.sum((d.y - np.asarray(simulate(d))) ** 2)) for d in recs)
-    return math.sqrt(err / sum(float(np.sum(d.y ** 2)) for d in recs))
+    y = np.stack([d.y for d in recs])
+    e = y - filt(num, den, np.stack([d.u for d in recs]))
+    e -= fit_initial_state(e, [(num, den)])[0]
+    return math.sqrt(float(np.sum(e ** 2)) / float(np.sum(y ** 2)))
 
 
 def relative_distance(G_model: np.ndarray | Callable[[np.ndarray], np.ndarray], ref: FrequencyResponse) -> float:

@@ -88,7 +88,7 @@ def test_on_finite_records_the_fitted_initial_state_takes_up_an_error_slower_tha
     est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=16, segment_s=SEG)
 
     def on_records(model, n):
-        return record_distance(lambda d: model.predict(d, math.inf, "estimate"), est, n)
+        return record_distance(model.G_polys, est, n)
 
     def with_pair(zero, pole):
         return PolyModel(A=[1.0], B=np.convolve(TRUE.B, [1.0, -zero]), C=[1.0], D=[1.0],
@@ -103,6 +103,21 @@ def test_on_finite_records_the_fitted_initial_state_takes_up_an_error_slower_tha
     assert short < 0.6 * weighted_distance(slow.freqresp, est)
     recs = validation_records(est, 1000, records=3)
     assert [d.N for d in recs] == [1000] * 3 and on_records(TRUE, 1000) < 0.03  # the truth itself: the BLA's error
+
+
+def test_record_distance_is_the_records_simulations_from_fitted_states_as_predict_makes_them():
+    """All records at once (one filter pass and one least-squares fit of every record's initial state) give what
+    ``model.predict(record, inf, "estimate")`` record by record gives; an unstable G is refused."""
+    est = bla(BINARY, _linear_plant, preprocess=Preprocess(), realisations=4, segment_s=SEG)
+    arx = PolyModel(A=[1.0, -1.2, 0.4], B=[0.0, 0.0, 0.3, 0.1], C=[1.0], D=[1.0], F=[1.0], nk=2, Ts=1e-3,
+                    structure="arx")
+    for model in (TRUE, arx):
+        recs = validation_records(est, 800, records=5)
+        err = sum(float(np.sum((d.y - model.predict(d, math.inf, "estimate")) ** 2)) for d in recs)
+        by_record = math.sqrt(err / sum(float(np.sum(d.y ** 2)) for d in recs))
+        assert record_distance(model.G_polys, est, 800, records=5) == pytest.approx(by_record, rel=1e-10)
+    with pytest.raises(ValueError, match="unit circle"):
+        record_distance(([0.0, 1.0], [1.0, -1.01]), est, 800, records=5)
 
 
 def test_one_record_frequency_response_error_matches_its_coherence_based_standard_error():
