@@ -36,10 +36,13 @@ tests no nested pair then ends further above its lower model; two of binary_sign
 81 models end 0.1 % higher, the others where they ended before).  That second level found the
 basin BJ [2 2 2 2 1] ends in on white_noise_2's first half, which BJ [2 3 2 2 1] and
 [2 2 3 2 1] missed by 0.29 % and 0.25 % when a lower model's search stopped at its own
-starts.  Each further run is abandoned once it joins the minimum already found, or when
-after a few iterations it is still above that converged minimum and no longer falling
-fast enough to get below it.  One call fits each model, start and run once, however
-many higher models a lower model is nested in.
+starts.  Each further run is abandoned once it joins the converged minimum already found,
+or when after a few iterations it is still above the best loss reached so far and no
+longer falling fast enough to get below it.  That loss counts whether its run converged or
+stalled in a flat valley, where it is reached all the same (counting converged runs only,
+the default sweep's nine BJ models ended at the same losses, within 2e-8, or higher, and
+filtered 13 % more samples; 45 % more on binary_a025's orders 3 and 5).  One call fits each model, start and
+run once, however many higher models a lower model is nested in.
 """
 
 from __future__ import annotations
@@ -129,8 +132,8 @@ class Search:
                     continue
                 key = (spec, start.theta.tobytes())
                 result = self.runs.get(key)
-                if result is None:
-                    limits = [x for x in (best.evaluation.loss if converged else None, bound) if x is not None]
+                if result is None:  # a stalled best's loss is reached too: a run staying above it is not finished
+                    limits = [x for x in (best.evaluation.loss if best is not None else None, bound) if x is not None]
                     result = minimise(
                         spec, start.theta, self.y, self.u, self.fit_states, self.max_iterations, self.tolerance,
                         abandon_above=min(limits) if limits else None,
