@@ -216,11 +216,12 @@ def minimise(
     of C, D or F out of the unit circle, the step is taken with those roots held
     where they are (on the stability boundary) and the other parameters free, so the
     search goes on along the boundary instead of stalling against the reflection.
-    For secondary starting points, once another start has converged: with
-    ``abandon_above`` the run stops after ``patience`` iterations if its loss is still
-    above that value and no longer falling fast enough to get below it, and with
-    ``known_minimum`` it stops as soon as it reaches that parameter vector (within
-    ``SAME_MINIMUM`` relative distance), since it would only repeat that run's work.
+    For secondary starting points: with ``abandon_above`` (a loss another start reached)
+    the run stops after ``patience`` iterations if its loss is still above that value and
+    no longer falling fast enough to get below it, and with ``known_minimum`` (another
+    start's converged minimum) it stops as soon as it reaches that parameter vector (within
+    ``SAME_MINIMUM`` relative distance), since it would only repeat that run's work.  Both
+    are decided before the next iteration's Jacobian is built, which they would not use.
     ``evaluated``: the evaluation at ``theta0`` (already projected), if the caller has it.
     """
     N, p = y.size, spec.n_params
@@ -237,6 +238,19 @@ def minimise(
     r = None
     iterations = 0
     for iterations in range(1, max_iterations + 1):
+        if abandon_above is not None and iterations > patience and current.loss > abandon_above:
+            # still above the best minimum: stop unless the last step gained enough to
+            # get below it within as many steps again
+            if (previous_loss - current.loss) * patience < current.loss - abandon_above:
+                termination = "abandoned: stays above the best minimum from another start"
+                iterations, r = iterations - 1, None
+                break
+        if known_minimum is not None and np.linalg.norm(current.theta - known_minimum) <= SAME_MINIMUM * (
+            1.0 + np.linalg.norm(known_minimum)
+        ):
+            termination = "joined the minimum found from another start"
+            iterations, r = iterations - 1, None
+            break
         r, g = _factor(spec, current, y, u, buffer)
         basis = _boundary_directions(spec, current.theta, r, g)
         rb, gb = (r, g) if basis is None else _restrict(r, g, basis)
@@ -252,19 +266,6 @@ def minimise(
                 if candidate.loss < current.loss:
                     current, r = candidate, None
                     break
-            iterations -= 1
-            break
-        if abandon_above is not None and iterations > patience and current.loss > abandon_above:
-            # still above the best minimum: stop unless the last step gained enough to
-            # get below it within as many steps again
-            if (previous_loss - current.loss) * patience < current.loss - abandon_above:
-                termination = "abandoned: stays above the best minimum from another start"
-                iterations -= 1
-                break
-        if known_minimum is not None and np.linalg.norm(current.theta - known_minimum) <= SAME_MINIMUM * (
-            1.0 + np.linalg.norm(known_minimum)
-        ):
-            termination = "joined the minimum found from another start"
             iterations -= 1
             break
         scale = np.sqrt(np.sum(r * r, axis=0)) + 1e-300
