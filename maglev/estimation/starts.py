@@ -43,8 +43,8 @@ or when after a few iterations it is still above the best loss reached so far an
 longer falling fast enough to get below it.  That loss counts whether its run converged or
 stalled in a flat valley, where it is reached all the same (counting converged runs only,
 the default sweep's nine BJ models ended at the same losses, within 2e-8, or higher, and
-filtered 13 % more samples; 45 % more on binary_a025's orders 3 and 5).  One call fits each model, start and
-run once, however many higher models a lower model is nested in.
+filtered 13 % more samples; 45 % more on binary_a025's orders 3 and 5).  One call fits
+each model, start and run once, however many higher models a lower model is nested in.
 """
 
 from __future__ import annotations
