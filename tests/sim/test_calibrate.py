@@ -108,6 +108,8 @@ def test_friction_defaults_meet_every_scored_check_and_beat_the_plant_in_motion_
 
     assert unmet(errors) == set()
     std_4 = only(targets, "binary_signal_4")  # binary_signal_4 replayed (its std) without the other records
+    fewer, _ = calibrate.friction_errors(fitted, std_4)  # the default plant's numbers of those records, exactly
+    assert fewer == {k: errors[k] for k in fewer} and len(fewer) < len(errors)
     for plant in ("stretched_sensor", "quiet_ageing"):
         assert "std binary_signal_4" in unmet(calibrate.friction_errors(rig(plant), std_4)[0]), plant
     # one evaluation of the fit itself runs and returns a plant (maxfev=1: the start; scored on fewer records,
