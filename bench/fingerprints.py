@@ -104,11 +104,12 @@ def files(table: Table) -> list[Path]:
     return out
 
 
-def fingerprint(table: Table) -> str:
+def fingerprint(table: Table, paths: list[Path] | None = None) -> str:
     """The first 16 hex digits of a SHA-256 over the table's files (relative path and bytes of each) and, if
-    asked, the package's version."""
+    asked, the package's version.  ``paths``: ``files(table)``, if the caller has them (following the imports
+    parses every module they reach)."""
     digest = hashlib.sha256()
-    for path in files(table):
+    for path in files(table) if paths is None else paths:
         digest.update(path.relative_to(REPO).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     if table.version:
         digest.update(b"version\0" + package_version().encode())
@@ -125,10 +126,11 @@ def package_version() -> str:
 def header(table: Table, command: str) -> str:
     """The sentence a page's header carries: the command that wrote it (``command``, as it was run) and the
     fingerprint of what it measured."""
-    n = len(files(table))
+    paths = files(table)
+    n = len(paths)
     what = (f"{table.script} and the {n - 1} files of maglev it imports" if table.follow_imports
             else f"{', '.join([table.script, *table.also])} ({n} files) and version {package_version()}")
-    return (f"Written by `{command}`. Fingerprint `{fingerprint(table)}` of {what}: a test checks that it is "
+    return (f"Written by `{command}`. Fingerprint `{fingerprint(table, paths)}` of {what}: a test checks that it is "
             "today's (docs/development.md).")
 
 
@@ -150,8 +152,8 @@ def stale(table: Table) -> str | None:
         why = "was not written by its command"
     elif found is None:
         why = "carries no fingerprint"
-    elif found.group(1) != fingerprint(table):
-        why = f"measured other code or cases (fingerprint {found.group(1)}, today {fingerprint(table)})"
+    elif found.group(1) != (today := fingerprint(table)):
+        why = f"measured other code or cases (fingerprint {found.group(1)}, today {today})"
     else:
         return None
     return f"{table.page} {why}: run `{table.command}` to regenerate"

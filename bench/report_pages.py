@@ -76,13 +76,13 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         raise SystemExit(f"report_pages: needs {', '.join(missing)}")
     from maglev.study.report import rank_and_report
-    from maglev.study.report.pdf import pages_before_appendix
+    from maglev.study.report.pdf import page_texts, pages_before_appendix
 
     with tempfile.TemporaryDirectory(prefix="report-pages-") as tmp:
         uri = a.tracking_uri or sweep(Path(tmp))
         _, page = rank_and_report(uri, a.experiment, a.parent, out=Path(tmp) / "report" / "real.html", pdf=True)
         pdf = page.with_suffix(".pdf")
-        pages = pages_before_appendix(pdf)
+        pages = pages_before_appendix(page_texts(pdf))
         written = rasterise(pdf, pages, a.out)
     print(f"{pages} pages before the appendix: " + ", ".join(str(w.relative_to(REPO)) if w.is_relative_to(REPO)
                                                              else str(w) for w in written))

@@ -138,10 +138,16 @@ def _drain_lab() -> None:
 
 
 def _worker_start(env: dict[str, str], launcher: int) -> None:
-    """In each renderer process, before anything else: MLflow's HTTP bounds (``env``) and an end with the
-    launcher; then import what drawing needs, before the first run's figures arrive."""
+    """In each renderer process, before anything else: Ctrl-C's default action, MLflow's HTTP bounds (``env``)
+    and an end with the launcher; then import what drawing needs, before the first run's figures arrive."""
     import os
+    import signal
 
+    # Ctrl-C reaches the whole process group: the renderer ends at once and quietly (the system's default, no
+    # traceback), as at the SIGTERM its launcher forwards; the launcher marks the runs it left KILLED (abandon).
+    # Ignored, it drew every run queued before the launcher could exit: the executor's exit hook waits for
+    # them, and runs before the sweep's atexit cleanup that would have stopped it (≈ 4 s of a test's sweep)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
     os.environ.update(env)
     from maglev.study.shutdown import exit_with
 
@@ -149,9 +155,6 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the launcher stops it
     import mlflow  # noqa: F401
 
     import control  # noqa: F401  (the runs' small-signal Jacobian)

@@ -404,8 +404,8 @@ def test_report_prints_to_at_most_six_a4_pages_before_the_appendix(lab_sweep, cl
 
     assert undated(out) == undated(report_file(reports))  # the sweep's page (but when it was written), printed
     pdf = out.with_suffix(".pdf")
-    pages = pages_before_appendix(pdf)
     texts = page_texts(pdf)
+    pages = pages_before_appendix(texts)
     # six pages plus the attached code (and the cautions) on one more: the long appendices stay in the HTML
     assert 0 < pages <= PAGE_LIMIT and len(texts) == pages + 1, (pages, len(texts))
     appendix = "".join(texts[pages:])

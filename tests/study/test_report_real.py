@@ -68,9 +68,9 @@ def test_real_report_prints_to_at_most_six_a4_pages_before_the_appendix(real_rep
     if chromium() is None:
         pytest.skip("chromium not installed (apt-get install -y chromium): the report is not printed")
     _, page = real_report
-    pdf = print_pdf(page, tmp_path / "real.pdf")
-    pages = pages_before_appendix(pdf)
-    assert 0 < pages <= PAGE_LIMIT and len(page_texts(pdf)) == pages + 1  # the attached code and cautions on one
+    texts = page_texts(print_pdf(page, tmp_path / "real.pdf"))
+    pages = pages_before_appendix(texts)
+    assert 0 < pages <= PAGE_LIMIT and len(texts) == pages + 1  # the attached code and cautions on one
 
 
 def test_real_sweeps_orders_decision_and_conclusion_follow_the_orders_rule(real_report):
