@@ -24,6 +24,8 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
 
+from maglev.study import shutdown
+
 log = logging.getLogger("maglev.study")
 
 # One renderer: a run's five figures take ≈ 0.2 s of CPU (drawn on the figures of the run before), less than
@@ -31,6 +33,7 @@ log = logging.getLogger("maglev.study")
 # more CPU per sweep (its imports) for no shorter sweep (36-48 s both ways at load 1.5-2.5,
 # bench/study_overhead.py --sweep)
 WORKERS = 1
+STOPPED = "the sweep stopped before the renderer finished this run"  # the error tag of a run a signal left undrawn
 _pool: ProcessPoolExecutor | None = None
 _pending: dict[str, tuple[str, Future, object, Callable]] = {}  # run id -> (tracking URI, its render, inputs, task)
 _figures: dict = {}  # this process's run figures, drawn again for every run (maglev.study.figures.run_figures)
@@ -231,7 +234,10 @@ def drain() -> dict[str, str]:
             fut.result()
         except Exception as exc:  # noqa: BLE001 — e.g. BrokenProcessPool: the renderer died
             failed[run_id] = f"{type(exc).__name__}: {exc}"
-            _fail(uri, run_id, failed[run_id])
+            if shutdown.received:  # Ctrl-C (or SIGTERM) ended the renderer too: the run was stopped, not failed
+                _fail(uri, run_id, STOPPED, "KILLED", quiet=True)
+            else:
+                _fail(uri, run_id, failed[run_id])
         _pending.pop(run_id, None)
     return failed
 
@@ -255,8 +261,7 @@ def abandon(status: str = "KILLED", write: bool = True) -> list[str]:
         _pool = None
     for run_id in left if write else []:
         try:
-            _fail(_pending[run_id][0], run_id, "the sweep stopped before the renderer finished this run", status,
-                  quiet=True)
+            _fail(_pending[run_id][0], run_id, STOPPED, status, quiet=True)
         except Exception as exc:  # noqa: BLE001 — the store may be gone too; mark the others
             log.error("run %s left RUNNING: %s: %s", run_id, type(exc).__name__, exc)
     _pending.clear()

@@ -53,6 +53,30 @@ def test_a_dead_renderer_fails_its_runs_and_abandon_kills_the_queued_ones(store)
     assert client.get_run(third).info.status in ("KILLED", "FINISHED")
 
 
+def test_a_renderer_ended_by_the_sweeps_signal_leaves_its_run_killed_not_failed(store, monkeypatch, caplog):
+    """Ctrl-C reaches the renderer too (it ends at once): a run it was drawing while the launcher waited for it
+    is KILLED, as abandon marks the runs a signal leaves, with no error line — not FAILED."""
+    from maglev.study import shutdown
+
+    uri, client, exp = store
+    render.abandon()
+    render.submit(uri, client.create_run(exp).info.run_id, inputs=None)
+    render.drain()
+    pid = next(iter(render._pool._processes))  # the renderer process, started by the first submit
+    os.kill(pid, signal.SIGSTOP)
+    render.submit(uri, second := client.create_run(exp).info.run_id, inputs=None)
+    deadline = time.monotonic() + 10
+    while not render._pending[second][1].running() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    monkeypatch.setattr(shutdown, "received", signal.SIGINT)
+    os.kill(pid, signal.SIGKILL)
+    with caplog.at_level("DEBUG", logger="maglev.study"):
+        render.drain()
+    got = client.get_run(second)
+    assert got.info.status == "KILLED" and got.data.tags["error"] == f"figures: {render.STOPPED}"
+    assert not [r for r in caplog.records if r.levelname == "ERROR"], caplog.text
+
+
 def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store):
     uri, client, exp = store
     render.abandon()  # no renderer left from an earlier test
