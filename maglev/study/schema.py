@@ -205,7 +205,8 @@ def _carries(cfg: DictConfig, schemas: dict[str, type]) -> bool:
 
 
 def typed(cfg: DictConfig) -> DictConfig:
-    """Re-apply the schemas to a config that has lost them (e.g. one loaded from a YAML file).
+    """Re-apply the schemas to a config that has lost them (e.g. one loaded from a YAML file); a config that
+    still has them (as Hydra composed it) is returned as it is.
 
     Raises the same ``ValidationError``/``ConfigKeyError`` naming the key as composition does.
     """
