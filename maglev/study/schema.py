@@ -16,9 +16,9 @@ The resolver ``${maglev.root:}`` gives the project root (:func:`maglev.paths.pro
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields as schema_fields, make_dataclass
+from dataclasses import dataclass, field, fields as schema_fields, is_dataclass, make_dataclass
 from enum import Enum
-from typing import Any, Optional
+from typing import Any, Optional, get_type_hints
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
@@ -195,7 +195,8 @@ def register_structure(name: str) -> type:
     return STRUCTURE_SCHEMAS[name]
 
 
-SECTIONS = {"tracking": TrackingCfg, "lab": LabCfg, "study": StudyCfg}  # Config's sections of one schema each
+# Config's sections of one schema each (tracking, lab, study), as its fields declare them
+SECTIONS = {key: kind for key, kind in get_type_hints(Config).items() if is_dataclass(kind)}
 
 
 def _carries(cfg: DictConfig, schemas: dict[str, type]) -> bool:
