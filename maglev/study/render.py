@@ -152,8 +152,12 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     # them, and runs before the sweep's atexit cleanup that would have stopped it (≈ 4 s of a test's sweep)
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     os.environ.update(env)
-    from maglev.study.shutdown import exit_with
+    import atexit
 
+    from maglev.study.shutdown import exit_with, skip_teardown
+
+    # its end: the launcher waits for this process at its own exit (concurrent.futures joins it)
+    atexit.register(skip_teardown, 0)
     exit_with(launcher)
     import matplotlib
 
