@@ -48,6 +48,7 @@ reported = False  # whether the sweep's (or the single run's) line has said what
 _held = 0  # how many deferred() blocks the main thread is in
 _pending: int | None = None  # a signal that arrived in one, raised when the outermost ends
 _status: int | None = None  # the status this process exits with, once its main code has ended (:func:`ending`)
+_jobs = 0  # jobs this process is running (:func:`job`): their runs are marked before exit_with ends it
 
 
 def descendants(pid: int | None = None) -> list[int]:
@@ -209,6 +210,17 @@ def skip_teardown(status: int | None = None) -> None:
     os._exit(status)
 
 
+@contextmanager
+def job() -> Iterator[None]:
+    """Around a job (one run): while it is in flight, :func:`exit_with` waits for it before ending the process."""
+    global _jobs
+    _jobs += 1
+    try:
+        yield
+    finally:
+        _jobs -= 1
+
+
 def mark_launcher() -> None:
     """Record this process as the sweep's launcher (its workers, started later, inherit the variable)."""
     os.environ[LAUNCHER_ENV] = f"{socket.gethostname()}:{os.getpid()}"
@@ -246,8 +258,10 @@ def exit_with(pid: int, grace: float = 20.0, poll: float = 0.5) -> bool:
     A daemon thread polls every ``poll`` s: the launcher is gone or a zombie, or, when it was this
     process's parent, the parent pid changed (an orphan is handed to init or a subreaper).  This
     process then gets SIGTERM, whose handler marks a job's run KILLED (:func:`install`), and
-    ``os._exit`` follows after ``grace`` s.  Polling, not Linux's ``PR_SET_PDEATHSIG``: that fires when
-    the *thread* that started the process ends, and joblib starts its workers from a helper thread.
+    ``os._exit`` follows once no job is left in flight (:func:`job`), at most ``grace`` s later.  A worker
+    between jobs — its main thread blocked reading its launcher's queue, where the signal's exit does not
+    end it — was left for the whole grace (20 s) before.  Polling, not Linux's ``PR_SET_PDEATHSIG``: that
+    fires when the *thread* that started the process ends, and joblib starts its workers from a helper thread.
     """
     global _watched
     if _watched is not None:
@@ -258,7 +272,9 @@ def exit_with(pid: int, grace: float = 20.0, poll: float = 0.5) -> bool:
         while not ((child and os.getppid() != pid) or ended(pid)):
             time.sleep(poll)
         os.kill(os.getpid(), signal.SIGTERM)
-        time.sleep(grace)
+        end = time.monotonic() + grace
+        while _jobs and time.monotonic() < end:  # the job in flight marks its run KILLED
+            time.sleep(0.05)
         os._exit(128 + signal.SIGTERM)
 
     _watched = pid

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 from .harness import default_ctrl_c, process_env
 
@@ -86,3 +87,38 @@ def test_study_py_exits_with_pythons_status_and_output_but_without_the_interpret
         assert out.stdout.startswith("unflushed") and "atexit ran" in out.stdout, (body, out.stdout)
         assert ("torn down" in out.stdout) == (body == "outside"), (body, out.stdout)  # no status: Python's end
         assert ("ValueError: boom" in out.stderr) == ("boom" in body) and ("bad" in out.stderr) == ("bad" in body)
+
+
+EXIT_WITH = """
+import subprocess, sys, threading, time
+from maglev.study import shutdown
+
+launcher = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+shutdown.install()
+shutdown.exit_with(launcher.pid, grace=30, poll=0.05)
+threading.Thread(target=time.sleep, args=(3600,)).start()  # what kept joblib's idle workers from exiting
+launcher.kill()
+if sys.argv[1] == "job":
+    with shutdown.job():
+        try:
+            while True:
+                time.sleep(0.01)
+        except SystemExit:
+            time.sleep(0.5)  # the job marks its run KILLED
+            print("marked", flush=True)
+            raise
+else:
+    threading.Event().wait()  # between jobs: waiting for the next one
+"""
+
+
+def test_a_worker_whose_launcher_dies_ends_once_its_job_has_marked_its_run():
+    """exit_with: SIGTERM, then os._exit as soon as no job is in flight — not after the whole grace (30 s
+    here, 20 s in a sweep: joblib's workers between two jobs outlived a killed launcher by that much)."""
+    for case in ("idle", "job"):
+        tic = time.monotonic()
+        out = subprocess.run([sys.executable, "-c", EXIT_WITH, case], capture_output=True, text=True, timeout=60,
+                             env=process_env())
+        assert out.returncode == 143, (case, out.stderr[-2000:])
+        assert out.stdout == ("marked\n" if case == "job" else ""), (case, out.stdout)
+        assert time.monotonic() - tic < 15, case
