@@ -80,7 +80,8 @@ def test_a_renderer_ended_by_the_sweeps_signal_leaves_its_run_killed_not_failed(
 def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store):
     uri, client, exp = store
     render.abandon()  # no renderer left from an earlier test
-    render.start()
+    assert render.submit_lab(uri, "no-parent", {}, []) is False  # none: the sweep callback makes the lab steps
+    assert render.start() and not render.start()  # one renderer: a second start finds it running
     assert len(render._pool._processes) == render.WORKERS  # spawned now, importing while the sweep starts
     pid = next(iter(render._pool._processes))
     run = client.create_run(exp).info.run_id
@@ -130,12 +131,10 @@ def test_drain_takes_runs_from_the_back_of_the_queue_while_the_renderer_goes_on_
 
 def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_failure_a_warning(store):
     """The sweep's lab steps go to the renderer first (the runs estimate meanwhile); the ranking reads them after
-    drain.  Without a renderer nothing is queued: the sweep callback makes them itself."""
+    drain.  (Without a renderer nothing is queued: the test of start.)"""
     from .harness import study_log
 
     uri, client, exp = store
-    render.abandon()  # no renderer left from an earlier test
-    assert render.submit_lab(uri, "no-parent", {}, []) is False
     render.start()
     parent = client.create_run(exp).info.run_id
     assert render.submit_lab(uri, parent, {}, [])  # a task without a lab section: lab_steps raises
@@ -143,7 +142,6 @@ def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_f
         assert render.drain() == {}
     assert client.get_run(parent).data.tags["lab_error"] == "KeyError: 'lab'"
     assert lines == ["lab steps failed: KeyError: 'lab'"]
-    render.abandon()
 
 
 
@@ -171,7 +169,6 @@ def test_a_run_the_renderer_cannot_validate_ends_failed_with_its_error_and_the_l
     assert got.data.tags["error"] == "AttributeError: 'NoneType' object has no attribute 'val'"
     assert artifact_paths(client, run) == {"error.txt", "config/config.yaml"}
     assert lines == [f"run {run} FAILED: AttributeError: 'NoneType' object has no attribute 'val'"]
-    render.abandon()
 
 
 def test_a_server_gone_under_the_renderer_ends_the_sweep_with_its_one_line_and_the_renderer_says_nothing(
