@@ -33,8 +33,10 @@ if __name__ == "__main__":
     from maglev.study import shutdown
 
     shutdown.install(forward=True)  # SIGTERM (Slurm, kill): runs KILLED, nothing left RUNNING
-    atexit.register(shutdown.final_line)  # registered first, so it runs after the sweep's own end
-    try:
-        main()
-    except KeyboardInterrupt:  # Ctrl-C: the sweep's line says what it ended; no traceback
-        raise SystemExit(130) from None
+    atexit.register(shutdown.skip_teardown)  # the last thing at exit: no interpreter teardown to wait for
+    atexit.register(shutdown.final_line)  # registered before the sweep's handlers, so it runs after its end
+    with shutdown.ending():
+        try:
+            main()
+        except KeyboardInterrupt:  # Ctrl-C: the sweep's line says what it ended; no traceback
+            raise SystemExit(130) from None

@@ -235,27 +235,40 @@ class SweepCallback(Callback):
         self.parent: str | None = None
         self.fresh = False
         self.lock: Path | None = None
+        self.early_renderer = False  # this sweep started the renderer before its configs were checked
 
     # ------------------------------------------------------------------ start
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         try:
-            self._start(config)
-        except SystemExit:  # NothingToDo, SweepRefused: first, as naming tracking.StoreProblem imports MLflow
+            try:
+                self._start(config)
+            except SystemExit:  # NothingToDo, SweepRefused: first, as naming tracking.StoreProblem imports MLflow
+                raise
+            except tracking.StoreProblem as exc:  # says what to do in its one line
+                raise SweepNotStarted(f"maglev: {credentials.redact(str(exc))}") from None
+            except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
+                first = str(exc).splitlines()[0] if str(exc) else ""
+                raise SweepNotStarted(f"maglev: the sweep could not start: {type(exc).__name__}: "
+                                      f"{credentials.redact(first)}") from exc
+        except BaseException:
+            if self.early_renderer and self.parent is None:  # started for a sweep that did not start: else the
+                render.abandon(write=False)  # exit waits for its imports (once the parent exists, _abort stops it)
             raise
-        except tracking.StoreProblem as exc:  # says what to do in its one line
-            raise SweepNotStarted(f"maglev: {credentials.redact(str(exc))}") from None
-        except Exception as exc:  # Hydra would only warn, then run the jobs without lock or parent
-            first = str(exc).splitlines()[0] if str(exc) else ""
-            raise SweepNotStarted(f"maglev: the sweep could not start: {type(exc).__name__}: "
-                                  f"{credentials.redact(first)}") from exc
 
     def _start(self, config: DictConfig) -> None:
+        from maglev.study.resume import new_sweep
+
         HydraConfig.instance().set_config(config)  # hydra#3427: ${hydra:...} in the callback
         credentials.redact_logs()  # Hydra logs every job's overrides, a URI's password included
         task = task_config(config)
         name = task["study"]["name"]
         size = sweep_size(config)
         log.info("sweep %r: %s jobs; checking their configs", name, size or "?")  # the first line, within seconds
+        drawing = bool(task["tracking"]["log_figures"]) and str(
+            config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher")
+        if drawing and new_sweep(task["tracking"]["uri"], task["tracking"]["experiment"], sweep_id(config, task)):
+            # a new sweep in a local store runs jobs: the renderer imports while the configs are checked
+            self.early_renderer = render.start({})
         jobs = check_sweep(config)
         try:
             check_lab(task)
@@ -278,8 +291,7 @@ class SweepCallback(Callback):
                      "a run that needs one waits for it", ", ".join(ds["name"] for ds in missing))
             datasets.prepare_blas(jobs, missing)  # while the store and the lab steps are made
         shutdown.mark_launcher()  # the processes started from here end with this one
-        if task["tracking"]["log_figures"] and str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
-            # its process imports while the store and the lab steps are made; MLflow's HTTP bounds first
+        if drawing:  # unless started above: its process imports while the store is made; MLflow's HTTP bounds first
             render.start(tracking.tracking_env(task["tracking"]))
         if not server:  # a SQLite store is made while the processes above import
             client, exp_id = tracking.connect(task["tracking"])

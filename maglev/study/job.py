@@ -131,6 +131,13 @@ def run(cfg: DictConfig) -> float | None:
     """The task of ``study.py``: returns the run's ``val_fit`` (None if it failed or was skipped)."""
     from maglev.study import shutdown
 
+    with shutdown.job():
+        return _run(cfg)
+
+
+def _run(cfg: DictConfig) -> float | None:
+    from maglev.study import shutdown
+
     shutdown.install()  # joblib and submitit workers never run study.py's own installation
     shutdown.raise_if_received()
     if shutdown.launcher() not in (None, os.getpid()):  # a worker of this machine's launcher: end with it

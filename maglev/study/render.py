@@ -152,8 +152,12 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     # them, and runs before the sweep's atexit cleanup that would have stopped it (≈ 4 s of a test's sweep)
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     os.environ.update(env)
-    from maglev.study.shutdown import exit_with
+    import atexit
 
+    from maglev.study.shutdown import exit_with, skip_teardown
+
+    # its end: the launcher waits for this process at its own exit (concurrent.futures joins it)
+    atexit.register(skip_teardown, 0)
     exit_with(launcher)
     import matplotlib
 
@@ -167,20 +171,22 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     import maglev.study.tracking  # noqa: F401
 
 
-def start(env: dict[str, str] | None = None) -> None:
-    """Start the renderer now (a sweep's start: its processes import while the store and the lab steps are
-    made), not at the first run's figures.  ``env``: MLflow's HTTP bounds for it (default: this process's
-    ``MLFLOW_HTTP_REQUEST_*`` variables)."""
+def start(env: dict[str, str] | None = None) -> bool:
+    """Start the renderer now (a sweep's start: its processes import while the configs are checked and the
+    store is made), not at the first run's figures; False when one is running already.  ``env``: MLflow's
+    HTTP bounds for it (default: this process's ``MLFLOW_HTTP_REQUEST_*`` variables)."""
     import os
 
     global _pool
+    if _pool is not None:
+        return False
     if env is None:
         env = {k: v for k, v in os.environ.items() if k.startswith("MLFLOW_HTTP_REQUEST_")}
-    if _pool is None:
-        _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"),
-                                    initializer=_worker_start, initargs=(env, os.getpid()))
-        for _ in range(WORKERS):  # a spawned pool starts its processes on demand
-            _pool.submit(int)
+    _pool = ProcessPoolExecutor(max_workers=WORKERS, mp_context=multiprocessing.get_context("spawn"),
+                                initializer=_worker_start, initargs=(env, os.getpid()))
+    for _ in range(WORKERS):  # a spawned pool starts its processes on demand
+        _pool.submit(int)
+    return True
 
 
 def submit(uri: str, run_id: str, inputs, task: Callable = draw_and_finish) -> None:
@@ -212,15 +218,19 @@ def pending() -> list[str]:
 
 
 def drain() -> dict[str, str]:
-    """Wait for every queued render, drawing the runs the renderer has not started yet here, beside it (the
-    caller waits anyway, and the renderer lags a few runs behind at a sweep's end); returns ``{run id:
-    error}`` for runs that could not be finished (the renderer's process died, or uploading failed): those
-    are marked FAILED with the error, never left RUNNING.  The lab steps queued first are waited for first.
-    A server that stopped answering raises :class:`maglev.study.tracking.TrackingUnreachable` (its one line
-    ends the sweep), here or in the renderer."""
-    _drain_lab()
+    """Wait for every queued render, drawing runs the renderer has not started yet here, beside it (the
+    caller waits anyway, and the renderer lags a few runs behind at a sweep's end): this process takes them
+    from the back of the queue while the renderer goes on from the front, until they meet.  Returns ``{run
+    id: error}`` for runs that could not be finished (the renderer's process died, or uploading failed):
+    those are marked FAILED with the error, never left RUNNING.  The lab steps queued first are waited for
+    before the runs the renderer draws.  A server that stopped answering raises
+    :class:`maglev.study.tracking.TrackingUnreachable` (its one line ends the sweep), here or in the renderer."""
     failed = {}
-    for run_id in [run_id for run_id, (_, fut, _, _) in _pending.items() if fut.cancel()]:
+    # the renderer takes its tasks in order: once the last one left cannot be cancelled, it has them all
+    while _pending:
+        run_id = next(reversed(_pending))
+        if not _pending[run_id][1].cancel():
+            break
         uri, _, inputs, task = _pending.pop(run_id)
         try:
             said = _task(task, uri, run_id, inputs)
@@ -229,6 +239,7 @@ def drain() -> dict[str, str]:
         except Exception as exc:  # noqa: BLE001 — e.g. the store refused the upload
             failed[run_id] = f"{type(exc).__name__}: {exc}"
             _fail(uri, run_id, failed[run_id])
+    _drain_lab()
     for run_id, (uri, fut, _, _) in list(_pending.items()):
         try:
             fut.result()

@@ -60,6 +60,15 @@ WHERE r.lifecycle_stage = 'active'
 """
 
 
+PARENT = """
+SELECT 1 FROM runs r
+JOIN experiments e ON e.experiment_id = r.experiment_id AND e.name = ? AND e.lifecycle_stage = 'active'
+JOIN tags s ON s.run_uuid = r.run_uuid AND s.key = 'sweep_id' AND s.value = ?
+JOIN tags k ON k.run_uuid = r.run_uuid AND k.key = 'kind' AND k.value = 'sweep'
+WHERE r.lifecycle_stage = 'active' LIMIT 1
+"""
+
+
 @dataclass(frozen=True)
 class Done:
     """A sweep whose relaunch has nothing to do: its parent run, how many configs, its ranking run and report."""
@@ -103,6 +112,26 @@ def read(db: Path, experiment: str, sid: str, hashes: list[str]) -> list[_Run] |
         run = runs.setdefault(run_id, _Run(run_id, status, int(start or 0), str(exp_id), role, {}))
         run.tags[key] = value
     return list(runs.values())
+
+
+def new_sweep(uri: str, experiment: str, sid: str) -> bool:
+    """True when the local SQLite store at ``uri`` holds no parent run of sweep ``sid``, or does not exist
+    yet: its launch runs jobs whatever its configs turn out to be (only a FINISHED parent can make
+    :func:`survey` say there is nothing to do).  False when it holds one, or cannot be read this way (a
+    server, another schema, locked)."""
+    if not uri.startswith(SQLITE):
+        return False
+    db = Path(uri[len(SQLITE):])
+    if not db.exists():
+        return True
+    try:
+        con = sqlite3.connect(f"{db.resolve().as_uri()}?mode=ro", uri=True, timeout=5)
+        try:
+            return con.execute(PARENT, (experiment, sid)).fetchone() is None
+        finally:
+            con.close()
+    except sqlite3.Error:
+        return False
 
 
 def ranked_ids(parent: str, models: list[_Run]) -> list[str]:

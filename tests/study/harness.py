@@ -173,3 +173,17 @@ def rule_orders(runs: list, margin: float = 1.0) -> dict[str, tuple[int, list[in
         best = max(fit[o] for o in counted)
         out[st] = (min(o for o in counted if fit[o] >= best - margin), grid)
     return out
+
+
+def drawn_slowly(uri: str, run_id: str, seconds: float) -> None:
+    """A renderer task (``maglev.study.render.submit``'s ``task``) that takes ``seconds``, tags the pid of the
+    process that ran it (``drawn_by``) and ends the run FINISHED, as drawing a run's figures does."""
+    import os
+    import time
+
+    from mlflow import MlflowClient
+
+    time.sleep(seconds)
+    client = MlflowClient(tracking_uri=uri)
+    client.set_tag(run_id, "drawn_by", str(os.getpid()))
+    client.set_terminated(run_id, "FINISHED")

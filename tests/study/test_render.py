@@ -80,7 +80,8 @@ def test_a_renderer_ended_by_the_sweeps_signal_leaves_its_run_killed_not_failed(
 def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store):
     uri, client, exp = store
     render.abandon()  # no renderer left from an earlier test
-    render.start()
+    assert render.submit_lab(uri, "no-parent", {}, []) is False  # none: the sweep callback makes the lab steps
+    assert render.start() and not render.start()  # one renderer: a second start finds it running
     assert len(render._pool._processes) == render.WORKERS  # spawned now, importing while the sweep starts
     pid = next(iter(render._pool._processes))
     run = client.create_run(exp).info.run_id
@@ -107,14 +108,33 @@ def test_drain_draws_the_runs_the_busy_renderer_has_not_started(store):
         assert got.info.status == "FINISHED" and got.data.tags["figures_error"].startswith("AttributeError")
 
 
+def test_drain_takes_runs_from_the_back_of_the_queue_while_the_renderer_goes_on_from_the_front(store):
+    """At a sweep's end the renderer lags some runs behind: this process draws from the last one back, the
+    renderer from the first one on, each run once.  (Taking every run the renderer had not started left it idle
+    while this process drew them one by one: 9 runs, 2.4 s, at the default sweep's end.)"""
+    from .harness import drawn_slowly
+
+    uri, client, exp = store
+    render.start()
+    render._pool.submit(int).result(timeout=60)  # the renderer has imported and waits for work
+    runs = [client.create_run(exp).info.run_id for _ in range(10)]
+    for run in runs:
+        render.submit(uri, run, 0.3, task=drawn_slowly)
+    assert render.drain() == {}
+    by = [client.get_run(run).data.tags["drawn_by"] for run in runs]
+    there = [run for run, pid in zip(runs, by) if pid != str(os.getpid())]
+    assert there == runs[:len(there)]  # the renderer drew the first runs, this process the others
+    handed_ahead = render.WORKERS + EXTRA_QUEUED_CALLS  # what the renderer holds before it starts them
+    assert handed_ahead < len(there) < len(runs), by  # the renderer went on drawing while this process drew
+    assert {client.get_run(run).info.status for run in runs} == {"FINISHED"}
+
+
 def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_failure_a_warning(store):
     """The sweep's lab steps go to the renderer first (the runs estimate meanwhile); the ranking reads them after
-    drain.  Without a renderer nothing is queued: the sweep callback makes them itself."""
+    drain.  (Without a renderer nothing is queued: the test of start.)"""
     from .harness import study_log
 
     uri, client, exp = store
-    render.abandon()  # no renderer left from an earlier test
-    assert render.submit_lab(uri, "no-parent", {}, []) is False
     render.start()
     parent = client.create_run(exp).info.run_id
     assert render.submit_lab(uri, parent, {}, [])  # a task without a lab section: lab_steps raises
@@ -122,7 +142,6 @@ def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_f
         assert render.drain() == {}
     assert client.get_run(parent).data.tags["lab_error"] == "KeyError: 'lab'"
     assert lines == ["lab steps failed: KeyError: 'lab'"]
-    render.abandon()
 
 
 
@@ -150,7 +169,6 @@ def test_a_run_the_renderer_cannot_validate_ends_failed_with_its_error_and_the_l
     assert got.data.tags["error"] == "AttributeError: 'NoneType' object has no attribute 'val'"
     assert artifact_paths(client, run) == {"error.txt", "config/config.yaml"}
     assert lines == [f"run {run} FAILED: AttributeError: 'NoneType' object has no attribute 'val'"]
-    render.abandon()
 
 
 def test_a_server_gone_under_the_renderer_ends_the_sweep_with_its_one_line_and_the_renderer_says_nothing(
@@ -189,3 +207,32 @@ def test_a_server_gone_under_the_renderer_ends_the_sweep_with_its_one_line_and_t
     assert str(gone.value).startswith(f"maglev: the MLflow tracking server {uri} cannot be reached (ConnectionError")
     assert tracking.unreachable == uri  # the sweep's end at exit then writes nothing (callbacks._abort)
     assert lines == [] and capfd.readouterr().err == ""
+
+
+def test_a_new_sweep_starts_its_renderer_before_checking_configs_and_a_refused_one_leaves_none(
+        tmp_path, monkeypatch):
+    """A sweep new to a local store runs jobs whatever its configs: its renderer imports while they are
+    checked.  When the checks refuse the sweep, the renderer is stopped at once: the exit does not wait for
+    its imports, and no process is left."""
+    from maglev.study import callbacks, shutdown
+
+    from .harness import TINY, launch
+
+    render.abandon()  # no renderer left from an earlier test
+    seen = []
+
+    def check_sweep(config):
+        seen.append(list(render._pool._processes) if render._pool else [])
+        return checked(config)
+
+    checked = callbacks.check_sweep
+    monkeypatch.setattr(callbacks, "check_sweep", check_sweep)
+    with pytest.raises(SystemExit, match="sweep refused before any run"):
+        launch(tmp_path, "dataset=binary_a025", "structure.order=2", *TINY, "lab.enabled=false",
+               "dataset.preprocess.split=0.5,0.9999")
+    assert len(seen) == 1 and len(seen[0]) == render.WORKERS  # started before the configs were checked
+    assert render._pool is None
+    deadline = time.monotonic() + 10
+    while not shutdown.ended(seen[0][0]) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert shutdown.ended(seen[0][0])

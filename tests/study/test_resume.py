@@ -106,6 +106,25 @@ def test_the_fast_answer_ranks_the_runs_the_ranking_ranks(store):
     assert resume.REF_PREFIX == claims.REF_PREFIX
 
 
+def test_a_store_without_the_sweeps_parent_run_is_a_new_sweep(store, tmp_path):
+    """resume.new_sweep: a launch into it runs jobs whatever its configs (its renderer starts before they are
+    checked); a store that holds the parent, a server, or no answer: the usual path decides."""
+    from maglev.study.resume import new_sweep
+
+    client, _, runs = all_runs(store)
+    parent = next(r for r in runs if r.data.tags.get("kind") == "sweep")
+    uri, sid = f"sqlite:///{store}/mlflow.db", parent.data.tags["sweep_id"]
+    assert new_sweep(uri, "maglev", sid) is False
+    assert new_sweep(uri, "maglev", "0" * 40) is True  # another sweep
+    assert new_sweep(uri, "another", sid) is True  # another experiment
+    assert new_sweep(f"sqlite:///{tmp_path}/none.db", "maglev", sid) is True  # no store yet
+    assert new_sweep("http://127.0.0.1:5000", "maglev", sid) is False
+    (tmp_path / "junk.db").write_bytes(b"not a database")
+    assert new_sweep(f"sqlite:///{tmp_path}/junk.db", "maglev", sid) is False
+    client.delete_run(parent.info.run_id)  # a sweep stopped before any run deletes its parent
+    assert new_sweep(uri, "maglev", sid) is True
+
+
 def decision(store, *, hashes: list[str] | None = None, lab: bool = False, structure: str | None = None,
              uri: str | None = None, reap: bool = True):
     """resume.survey's decision on the sweep in ``store`` (its own hashes unless given)."""

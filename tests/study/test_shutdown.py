@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 from .harness import default_ctrl_c, process_env
 
@@ -52,3 +53,72 @@ def test_a_signal_in_a_commit_is_raised_after_it_and_the_store_stays_writable(tm
     for line in lines[1::2]:
         assert float(line.split()[4]) < 5, lines  # not SQLite's 20 s busy timeout
         assert line.endswith(": KILLED yes"), lines  # the interrupted transaction committed whole
+
+
+ENDING = """
+import atexit, sys
+from maglev.study import shutdown
+
+class Held:
+    def __del__(self):  # runs in the interpreter's teardown, if there is one
+        print("torn down", flush=True)
+
+held = Held()
+atexit.register(shutdown.skip_teardown)
+atexit.register(print, "atexit ran")  # registered later: runs before skip_teardown
+sys.stdout.write("unflushed")
+if sys.argv[1] == "outside":
+    raise SystemExit(4)
+with shutdown.ending():
+    exec(sys.argv[1])
+"""
+
+
+def test_study_py_exits_with_pythons_status_and_output_but_without_the_interpreters_teardown():
+    """``study.py`` ends through :func:`maglev.study.shutdown.skip_teardown` (a sweep's launcher spent 1.2 s
+    freeing modules after its last line, and waited 1.2 s more for its renderer's): the exit status Python
+    gives the exception that ends the main code, every atexit handler run and the output flushed."""
+    cases = {"pass": 0, "sys.exit()": 0, "raise SystemExit(3)": 3, "raise SystemExit('bad')": 1,
+             "raise ValueError('boom')": 1, "outside": 4}
+    for body, status in cases.items():
+        out = subprocess.run([sys.executable, "-c", ENDING, body], capture_output=True, text=True, timeout=60,
+                             env=process_env())
+        assert out.returncode == status, (body, out.returncode, out.stderr[-2000:])
+        assert out.stdout.startswith("unflushed") and "atexit ran" in out.stdout, (body, out.stdout)
+        assert ("torn down" in out.stdout) == (body == "outside"), (body, out.stdout)  # no status: Python's end
+        assert ("ValueError: boom" in out.stderr) == ("boom" in body) and ("bad" in out.stderr) == ("bad" in body)
+
+
+EXIT_WITH = """
+import subprocess, sys, threading, time
+from maglev.study import shutdown
+
+launcher = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+shutdown.install()
+shutdown.exit_with(launcher.pid, grace=30, poll=0.05)
+threading.Thread(target=time.sleep, args=(3600,)).start()  # what kept joblib's idle workers from exiting
+launcher.kill()
+if sys.argv[1] == "job":
+    with shutdown.job():
+        try:
+            while True:
+                time.sleep(0.01)
+        except SystemExit:
+            time.sleep(0.5)  # the job marks its run KILLED
+            print("marked", flush=True)
+            raise
+else:
+    threading.Event().wait()  # between jobs: waiting for the next one
+"""
+
+
+def test_a_worker_whose_launcher_dies_ends_once_its_job_has_marked_its_run():
+    """exit_with: SIGTERM, then os._exit as soon as no job is in flight — not after the whole grace (30 s
+    here, 20 s in a sweep: joblib's workers between two jobs outlived a killed launcher by that much)."""
+    for case in ("idle", "job"):
+        tic = time.monotonic()
+        out = subprocess.run([sys.executable, "-c", EXIT_WITH, case], capture_output=True, text=True, timeout=60,
+                             env=process_env())
+        assert out.returncode == 143, (case, out.stderr[-2000:])
+        assert out.stdout == ("marked\n" if case == "job" else ""), (case, out.stdout)
+        assert time.monotonic() - tic < 15, case
