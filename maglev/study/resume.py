@@ -20,7 +20,6 @@ import hashlib
 import os
 import socket
 import sqlite3
-from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
