@@ -38,6 +38,13 @@ def png(fig: Figure, dpi: int = DPI) -> bytes:
     return raster.png(fig, dpi)
 
 
+def pngs(make, *args) -> bytes | dict[str, bytes]:
+    """``make(*args)`` (a figure, or a dict of them) as PNG bytes: a module-level function, so that the renderer
+    can draw a ranking's figures while the launcher goes on (:func:`maglev.study.render.offload`)."""
+    made = make(*args)
+    return {k: png(f) for k, f in made.items()} if isinstance(made, dict) else png(made)
+
+
 def best_worst_figures(best, worst, resid_best, resid_worst, fit_best: float, fit_worst: float) -> dict:
     """``bode``: both overlaid; ``pzmap``: both maps together (99 % bounds and regions); ``resid``: their
     correlations side by side."""

@@ -181,7 +181,8 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
     ``structure``, made already (the end of a sweep asks it first): its table, comparison and cautions are
     taken as they are."""
     from maglev.study.decisions import orders_of_table
-    from maglev.study.figures import best_worst_figures, comparison_figure, png
+    from maglev.study import render
+    from maglev.study.figures import best_worst_figures, comparison_figure, png, pngs
 
     if ranked is None:
         table = rank_table(sweep.runs)
@@ -202,6 +203,9 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
     models = {r["run_id"]: sweep.model(r["run_id"]) for r in wanted}
     best, worst = table.iloc[0], table.iloc[-1]
     resids = {r["run_id"]: run_resid(sweep, r, models[r["run_id"]]) for r in (best, worst)}
+    named = {k: replace(models[r["run_id"]], name=f"{k}: {r['name']}") for k, r in (("best", best), ("worst", worst))}
+    drawn = render.offload(pngs, best_worst_figures, named["best"], named["worst"], resids[best["run_id"]],
+                           resids[worst["run_id"]], best["val_fit"], worst["val_fit"])  # while the datasets are made
     configs, cross = {}, None
     try:
         configs = dataset_configs(sweep)
@@ -212,13 +216,12 @@ def compute(sweep: Sweep, structure: str | None = None, common: bool = True, dra
     ranking = Ranking(sweep=sweep, table=table, structure=chosen, comparison=comp, common=cross,
                       models=models, orders=ranked.orders, configs=configs, resids=resids, notes=notes,
                       cautions=ranked.cautions)
-    named = {k: replace(models[r["run_id"]], name=f"{k}: {r['name']}") for k, r in (("best", best), ("worst", worst))}
-    figs = best_worst_figures(named["best"], named["worst"], resids[best["run_id"]], resids[worst["run_id"]],
-                              best["val_fit"], worst["val_fit"])
-    ranking.files.update({f"best_vs_worst/{k}.png": png(f) for k, f in figs.items()})
-    if comp is not None:
-        ranking.files["binary_vs_uniform/fit.png"] = png(comparison_figure(comp, cross, chosen))
-    ranking.files.update(tables(ranking))
+    compared = png(comparison_figure(comp, cross, chosen)) if comp is not None else None
+    made = tables(ranking)
+    ranking.files.update({f"best_vs_worst/{k}.png": v for k, v in drawn().items()})
+    if compared is not None:
+        ranking.files["binary_vs_uniform/fit.png"] = compared
+    ranking.files.update(made)
     return ranking
 
 

@@ -206,6 +206,31 @@ def submit(uri: str, run_id: str, inputs, task: Callable = draw_and_finish) -> N
     raise RuntimeError("the figure renderer cannot be started")
 
 
+def offload(fn: Callable, *args) -> Callable[[], object]:
+    """``fn(*args)`` on the renderer when one is running — idle once the sweep is drained, while the ranking and
+    the report are made here — else here when asked; returns the function that waits for its value (made here
+    if the renderer died meanwhile, or if the arguments do not pickle)."""
+    import pickle
+
+    fut = None
+    if _pool is not None:
+        try:
+            pickle.dumps(args)  # the pool would fail on them in its feeder thread
+            fut = _pool.submit(fn, *args)
+        except (pickle.PicklingError, AttributeError, TypeError, BrokenProcessPool, RuntimeError):
+            fut = None  # not picklable (a python-control system's lambda), or the renderer is broken or shut down
+
+    def value():
+        if fut is not None:
+            try:
+                return fut.result()
+            except BrokenProcessPool:
+                pass
+        return fn(*args)
+
+    return value
+
+
 def _say(fut: Future) -> None:
     """A task's line, printed as soon as the renderer ends it (in this process's pool thread)."""
     if not fut.cancelled() and fut.exception() is None and fut.result():

@@ -187,3 +187,10 @@ def drawn_slowly(uri: str, run_id: str, seconds: float) -> None:
     client = MlflowClient(tracking_uri=uri)
     client.set_tag(run_id, "drawn_by", str(os.getpid()))
     client.set_terminated(run_id, "FINISHED")
+
+
+def pid_of(*args) -> int:
+    """The pid of the process that runs it (a task for ``maglev.study.render.offload``)."""
+    import os
+
+    return os.getpid()

@@ -129,6 +129,21 @@ def test_drain_takes_runs_from_the_back_of_the_queue_while_the_renderer_goes_on_
     assert {client.get_run(run).info.status for run in runs} == {"FINISHED"}
 
 
+def test_offload_runs_on_the_renderer_when_there_is_one_else_here(store):
+    """The ranking's figures are drawn on the sweep's renderer, idle once drained, while the report is written
+    here; arguments that do not pickle, or no renderer, and they are made here."""
+    from .harness import pid_of
+
+    render.start()
+    assert render.offload(pid_of, 1)() not in (os.getpid(), None)
+    assert render.offload(pid_of, lambda: 1)() == os.getpid()  # a python-control system's lambda does not pickle
+    pool, render._pool = render._pool, None
+    try:
+        assert render.offload(pid_of, 1)() == os.getpid()
+    finally:
+        render._pool = pool
+
+
 def test_lab_steps_queued_on_the_renderer_are_made_by_the_time_drain_returns_a_failure_a_warning(store):
     """The sweep's lab steps go to the renderer first (the runs estimate meanwhile); the ranking reads them after
     drain.  (Without a renderer nothing is queued: the test of start.)"""
