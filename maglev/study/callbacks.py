@@ -264,8 +264,8 @@ class SweepCallback(Callback):
         name = task["study"]["name"]
         size = sweep_size(config)
         log.info("sweep %r: %s jobs; checking their configs", name, size or "?")  # the first line, within seconds
-        drawing = bool(task["tracking"]["log_figures"]) and str(
-            config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher")
+        here = str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher")  # jobs run in this process
+        drawing = bool(task["tracking"]["log_figures"]) and here
         if drawing and new_sweep(task["tracking"]["uri"], task["tracking"]["experiment"], sweep_id(config, task)):
             # a new sweep in a local store runs jobs: the renderer imports while the configs are checked
             self.early_renderer = render.start({})
@@ -338,6 +338,8 @@ class SweepCallback(Callback):
             if not queued:
                 self._log_lab(task, jobs)
         os.environ[progress.START_ENV] = str(time.time())  # the runs start: their ETA counts from here
+        if here:
+            shutdown.between_jobs()  # jobs run here: Hydra composes the first one
 
     def _log_environment(self) -> None:
         """``environment/requirements.txt``: what `pip install -r` needs to rebuild this environment. Like the
@@ -354,9 +356,9 @@ class SweepCallback(Callback):
 
     # ------------------------------------------------------------------ end
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        shutdown.raise_if_received()  # a signal held between jobs, or whose exception was lost: the sweep did not end
         if self.parent is None:
             return
-        shutdown.raise_if_received()  # a signal whose exception was lost: the sweep did not end
         render.drain()  # the last runs' figures: their runs are FINISHED once drawn (a dead server: _abort at exit)
         atexit.unregister(self._abort)
         kids = tracking.children(self.client, self.exp_id, self.parent)

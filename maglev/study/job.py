@@ -132,7 +132,12 @@ def run(cfg: DictConfig) -> float | None:
     from maglev.study import shutdown
 
     with shutdown.job():
-        return _run(cfg)
+        try:
+            return _run(cfg)
+        finally:
+            ctx = hydra_context()
+            if ctx.get("job_num") is not None and ctx["launcher"].endswith("BasicLauncher"):
+                shutdown.between_jobs()  # Hydra prepares the next job here: a signal is raised at its start
 
 
 def _run(cfg: DictConfig) -> float | None:
@@ -202,8 +207,10 @@ def _run(cfg: DictConfig) -> float | None:
         log.info("%s: val_fit %.2f %%  (run %s)%s", label, estimated.val_fit, run_id, time_left(ctx))
         return estimated.val_fit
     except BaseException as exc:  # noqa: BLE001 — record every way of dying
-        # submitit raises UncompletedJobError (an Exception) when a job ran out of requeues: killed, not failed
-        killed = not isinstance(exc, Exception) or type(exc).__name__ == "UncompletedJobError"
+        # submitit raises UncompletedJobError (an Exception) when a job ran out of requeues: killed, not failed;
+        # an error once a signal has arrived is what its exit broke on the way (OmegaConf's, in a list half-made)
+        killed = (not isinstance(exc, Exception) or shutdown.received is not None
+                  or type(exc).__name__ == "UncompletedJobError")
         status = "KILLED" if killed else "FAILED"
         finish.record_end(client, plain["tracking"], run_id, exc, status, finish.config_text(plain))
         # a signal's KILLED runs are counted in the sweep's one line (callbacks.SweepCallback._abort)
@@ -211,5 +218,6 @@ def _run(cfg: DictConfig) -> float | None:
         log.log(level, "%s: run %s %s: %s: %s", label, run_id, status, type(exc).__name__, exc)
         shutdown.reported = shutdown.reported or level == logging.ERROR
         if killed or plain["study"]["fail_on_error"]:
+            shutdown.raise_if_received()  # the signal's exit, not the error it caused
             raise
         return None

@@ -49,6 +49,7 @@ _held = 0  # how many deferred() blocks the main thread is in
 _pending: int | None = None  # a signal that arrived in one, raised when the outermost ends
 _status: int | None = None  # the status this process exits with, once its main code has ended (:func:`ending`)
 _jobs = 0  # jobs this process is running (:func:`job`): their runs are marked before exit_with ends it
+_between = False  # Hydra's code runs between this process's jobs: signals held (:func:`between_jobs`)
 
 
 def descendants(pid: int | None = None) -> list[int]:
@@ -120,9 +121,32 @@ def raise_if_received() -> None:
     """Raise the exit of a signal that has arrived, at a safe point (a job's start, a sweep's end): the
     handler's exception is lost when it lands in a garbage-collector callback or a ``__del__`` (Python
     prints "Exception ignored" and goes on) — seen with SIGTERM to a sweep's process group, which then
-    ran its remaining jobs and exited 0."""
+    ran its remaining jobs and exited 0.  Ends the hold of :func:`between_jobs`."""
+    _release()
     if received is not None and not _held:
         _raise(received)
+
+
+def between_jobs() -> None:
+    """In a process that runs a sweep's jobs itself (Hydra's basic launcher), once one ends or before the
+    first: hold the signals' exits, as :func:`deferred` does, until the next job starts or the sweep ends
+    (:func:`raise_if_received`).  Hydra's code between jobs edits OmegaConf configs, which an exception
+    landing inside leaves broken: SIGTERM while Hydra set the next job's overrides surfaced as OmegaConf's
+    ``AttributeError`` — a traceback and exit 1 instead of the sweep's one line and 143."""
+    global _held, _between
+    if threading.current_thread() is threading.main_thread() and not _between:
+        _between = True
+        _held += 1
+
+
+def _release() -> None:
+    """End :func:`between_jobs`'s hold (a signal that arrived in it is still ``received``)."""
+    global _held, _between, _pending
+    if _between:
+        _between = False
+        _held -= 1
+        if not _held:
+            _pending = None
 
 
 def _on_sigint(signum, frame) -> None:
@@ -189,7 +213,10 @@ def ending() -> Iterator[None]:
     except BaseException:
         _status = 1
         raise
-    _status = 0
+    else:
+        _status = 0
+    finally:
+        _release()  # a sweep that ended between jobs: a Ctrl-C during the cleanup at exit is not held
 
 
 def skip_teardown(status: int | None = None) -> None:

@@ -332,3 +332,23 @@ def test_two_runs_logging_the_same_new_dataset_at_once_both_log_it(store):
             t.join()
         assert all(len(client.get_run(r).inputs.dataset_inputs) == 1 for r in runs)  # est = val: one dataset
     assert errors == []
+
+
+def test_an_error_raised_once_a_signal_has_arrived_kills_the_run_with_the_signals_exit(migrated_store, monkeypatch):
+    """A signal's exit that lands inside OmegaConf (or any library whose cleanup it breaks) surfaces as that
+    library's own error: the run was stopped, not failed, and the process ends as the signal says."""
+    import signal
+
+    from maglev.study import job, shutdown
+
+    def interrupted(cfg):
+        monkeypatch.setattr(shutdown, "received", signal.SIGTERM)
+        raise AttributeError("'NoneType' object has no attribute '_invalidate_flags_cache'")
+
+    monkeypatch.setattr(job, "estimate_run", interrupted)
+    with pytest.raises(SystemExit) as stopped:
+        launch(migrated_store, "dataset=binary_a025", "structure=arx", *TINY, "lab.enabled=false",
+               "tracking.log_figures=false", multirun=False)
+    assert stopped.value.code == 143
+    _, _, runs = all_runs(migrated_store)
+    assert [(r.info.status, r.data.tags["error"].split(":")[0]) for r in runs] == [("KILLED", "AttributeError")]
