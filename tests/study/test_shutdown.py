@@ -144,6 +144,7 @@ def signal_in_append(self, key, value):  # the second item Hydra appends to the 
     if ended and sys._getframe(1).f_code.co_name == "append":
         appends.append(1)
         if len(appends) == 2:
+            print("SIGTERM sent from ListConfig.append", file=sys.stderr, flush=True)
             os.kill(os.getpid(), signal.SIGTERM)
     return set_item(self, key, value)
 
@@ -166,6 +167,7 @@ def test_sigterm_while_hydra_prepares_the_next_job_ends_the_sweep_with_its_one_l
            "~hydra.callbacks.maglev_rank"]
     out = subprocess.run(cmd, capture_output=True, text=True, timeout=240, cwd=tmp_path, env=process_env())
     text = out.stdout + out.stderr
+    assert "SIGTERM sent from ListConfig.append" in text, f"the trap in OmegaConf did not fire: {text[-3000:]}"
     assert out.returncode == 143 and "Traceback" not in text, text[-3000:]
     stopped = [line for line in text.splitlines() if "sweep stopped (SIGTERM): parent run " in line]
     assert len(stopped) == 1 and "[1/2] arx" in text and "[2/2]" not in text, text[-3000:]
