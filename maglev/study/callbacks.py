@@ -184,6 +184,7 @@ def check_sweep(config: DictConfig) -> list[dict]:
             shown = " ".join(o if len(o) <= 80 else f"{o[:60]}…" for o in overrides
                              if not o.lstrip("+~").startswith(("tracking", "hydra")))
             raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
+    shutdown.raise_if_received()  # the compositions above hold a signal for the job they would start
     return checked
 
 

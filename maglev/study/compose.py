@@ -11,6 +11,10 @@ function, its ``hydra.overrides.task`` and ``hydra.job.override_dirname`` as Hyd
 The default sweep composes 12 configs instead of 42.  The sweep callback installs it before its
 own check (:func:`maglev.study.callbacks.check_sweep`, which shares the compositions); the
 launchers that compose in other processes (joblib, submitit) are left alone.
+
+A signal that arrives while a config is composed, or while Hydra edits it before its job starts, is raised
+at the next call here or at the job's start (:func:`maglev.study.shutdown.between_jobs`): raised inside
+OmegaConf, its exit was replaced by OmegaConf's own error.
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ def memoise(loader) -> None:
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from omegaconf import open_dict
 
+    from maglev.study import shutdown
+
     compose = loader.load_sweep_config
     parser = OverridesParser.create()
     memo: dict[tuple, object] = {}
@@ -37,6 +43,13 @@ def memoise(loader) -> None:
                     or o.is_sweep_override() or loader.repository.group_exists(o.key_or_group))
 
     def load_sweep_config(master_config, sweep_overrides):
+        shutdown.raise_if_received()  # a signal held since the last config or job: raised here, outside OmegaConf
+        with shutdown.deferred():
+            cfg = composed(master_config, sweep_overrides)
+        shutdown.between_jobs()  # Hydra edits it next (the job's number, run_job's copies): held until a job starts
+        return cfg
+
+    def composed(master_config, sweep_overrides):
         parsed = parser.parse_overrides(list(sweep_overrides))
         values = [o for o in parsed if plain(o)]
         groups = [o.input_line for o in parsed if not plain(o)]

@@ -128,11 +128,13 @@ def raise_if_received() -> None:
 
 
 def between_jobs() -> None:
-    """In a process that runs a sweep's jobs itself (Hydra's basic launcher), once one ends or before the
-    first: hold the signals' exits, as :func:`deferred` does, until the next job starts or the sweep ends
-    (:func:`raise_if_received`).  Hydra's code between jobs edits OmegaConf configs, which an exception
-    landing inside leaves broken: SIGTERM while Hydra set the next job's overrides surfaced as OmegaConf's
-    ``AttributeError`` — a traceback and exit 1 instead of the sweep's one line and 143."""
+    """In a process that runs a sweep's jobs itself (Hydra's basic launcher), once a job's config is composed
+    (:mod:`maglev.study.compose`), a job ends, or the sweep's start: hold the signals' exits, as :func:`deferred`
+    does, until the next composition or job starts or the sweep ends (:func:`raise_if_received`).  Hydra's
+    code in between edits OmegaConf configs, which an exception landing inside leaves broken: SIGTERM while
+    Hydra set the next job's overrides surfaced as OmegaConf's ``AttributeError`` — a traceback and exit 1
+    instead of the sweep's one line and 143.  Hydra's own checks of a large sweep's configs stay
+    interruptible: each composition ends the hold before the next."""
     global _held, _between
     if threading.current_thread() is threading.main_thread() and not _between:
         _between = True

@@ -12,6 +12,8 @@ import subprocess
 import sys
 import time
 
+import pytest
+
 from .harness import default_ctrl_c, process_env
 
 SCRIPT = """
@@ -124,12 +126,14 @@ def test_a_worker_whose_launcher_dies_ends_once_its_job_has_marked_its_run():
         assert time.monotonic() - tic < 15, case
 
 
-BETWEEN_JOBS = """
+IN_OMEGACONF = """
 import os, runpy, signal, sys
+from hydra._internal.config_loader_impl import ConfigLoaderImpl
 from omegaconf.listconfig import ListConfig
 import maglev.study.job as job
 
-ended, appends = [], []
+where = sys.argv.pop(1)  # "next job": as Hydra prepares the second job; "checks": in Hydra's checks of the configs
+ended, appends, sent = [], [], []
 run = job.run
 
 def counted(cfg):
@@ -138,37 +142,59 @@ def counted(cfg):
     finally:
         ended.append(1)
 
+def in_checks() -> bool:
+    frame = sys._getframe()
+    while frame is not None and frame.f_code.co_name != "validate_batch_is_legal":
+        frame = frame.f_back
+    return frame is not None
+
 set_item = ListConfig._set_item_impl
 
-def signal_in_append(self, key, value):  # the second item Hydra appends to the next job's overrides
-    if ended and sys._getframe(1).f_code.co_name == "append":
+def signal_in_append(self, key, value):  # the second item appended to a job's overrides (the list half-made)
+    armed = ended if where == "next job" else in_checks()
+    if armed and not sent and sys._getframe(1).f_code.co_name == "append":
         appends.append(1)
         if len(appends) == 2:
+            sent.append(1)
             print("SIGTERM sent from ListConfig.append", file=sys.stderr, flush=True)
             os.kill(os.getpid(), signal.SIGTERM)
     return set_item(self, key, value)
 
+apply = ConfigLoaderImpl._apply_overrides_to_config
+
+def composing(overrides, cfg):
+    if sent:
+        print("a config composed after the signal", file=sys.stderr, flush=True)
+    return apply(overrides, cfg)
+
 job.run = counted
 ListConfig._set_item_impl = signal_in_append
+ConfigLoaderImpl._apply_overrides_to_config = staticmethod(composing)
 sys.argv = sys.argv[1:]
 runpy.run_path(sys.argv[0], run_name="__main__")
 """
 
 
-def test_sigterm_while_hydra_prepares_the_next_job_ends_the_sweep_with_its_one_line(tmp_path):
-    """SIGTERM that lands in OmegaConf while Hydra's basic launcher sets the next job's overrides (between a
-    ``None`` placeholder appended to a list and its item): OmegaConf's cleanup then failed on the placeholder,
-    and its ``AttributeError`` replaced the signal's exit — a traceback and exit 1 (seen in the suite: the
-    process-group SIGTERM test failed once in three runs).  Now the signal waits for the next job's start."""
+@pytest.mark.parametrize("where", ["next job", "checks"])
+def test_sigterm_inside_omegaconf_between_jobs_ends_the_sweep_at_once_with_its_one_line(tmp_path, where):
+    """SIGTERM that lands in OmegaConf while Hydra's basic launcher sets a job's overrides (between a ``None``
+    placeholder appended to a list and its item): OmegaConf's cleanup then failed on the placeholder, and its
+    ``AttributeError`` replaced the signal's exit — a traceback and exit 1 (seen in the suite: the process-group
+    SIGTERM test failed once in three runs).  Now the signal is raised once that config is made: as Hydra
+    prepares the second job, or in Hydra's own checks of the sweep's configs, before the next one is composed."""
     from .harness import LEAN, REPO, TINY, model_statuses, store_overrides
 
-    cmd = [sys.executable, "-c", BETWEEN_JOBS, str(REPO / "study.py"), "-m", "dataset=binary_a025",
-           "structure=arx,oe", "structure.order=2", *TINY, *LEAN, *store_overrides(tmp_path),
+    cmd = [sys.executable, "-c", IN_OMEGACONF, where, str(REPO / "study.py"), "-m", "dataset=binary_a025",
+           "structure=arx,oe", "structure.order=2,3", *TINY, *LEAN, *store_overrides(tmp_path),
            "~hydra.callbacks.maglev_rank"]
     out = subprocess.run(cmd, capture_output=True, text=True, timeout=240, cwd=tmp_path, env=process_env())
     text = out.stdout + out.stderr
     assert "SIGTERM sent from ListConfig.append" in text, f"the trap in OmegaConf did not fire: {text[-3000:]}"
     assert out.returncode == 143 and "Traceback" not in text, text[-3000:]
-    stopped = [line for line in text.splitlines() if "sweep stopped (SIGTERM): parent run " in line]
-    assert len(stopped) == 1 and "[1/2] arx" in text and "[2/2]" not in text, text[-3000:]
-    assert model_statuses(tmp_path) == {"FINISHED"}  # the first job's run; the second never started
+    assert "a config composed after the signal" not in text, text[-3000:]
+    stopped = [line for line in text.splitlines() if "sweep stopped (SIGTERM)" in line]  # the sweep's one line
+    assert len(stopped) == 1 and "[2/4]" not in text, text[-3000:]
+    if where == "next job":  # the first job's run FINISHED; the second never started
+        assert "[1/4] arx" in text and model_statuses(tmp_path) == {"FINISHED"}, text[-3000:]
+    else:
+        assert "[1/4]" not in text and model_statuses(tmp_path) == set(), text[-3000:]
