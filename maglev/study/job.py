@@ -137,7 +137,7 @@ def run(cfg: DictConfig) -> float | None:
         finally:
             ctx = hydra_context()
             if ctx.get("job_num") is not None and ctx["launcher"].endswith("BasicLauncher"):
-                shutdown.between_jobs()  # Hydra prepares the next job here: a signal is raised at its start
+                shutdown.between_jobs()  # Hydra goes on in OmegaConf: a signal is raised at the next config or job
 
 
 def _run(cfg: DictConfig) -> float | None:
