@@ -64,6 +64,7 @@ def test_two_launches_at_once_run_every_config_once_into_a_fresh_then_an_existin
     """The second launch of a sweep waits for the first, then finds every config done: one ranking.
     Then an overlapping sweep (one structure more), twice at once, into the existing store: it runs only
     the new config, ranks all three, and its report does not overwrite the first sweep's."""
+    from maglev.study.callbacks import NothingToDo
     from maglev.study.cli import main
 
     first = [*SMALL, "structure=arx,oe", "study.name=twin"]
@@ -88,7 +89,10 @@ def test_two_launches_at_once_run_every_config_once_into_a_fresh_then_an_existin
     while "parent run" not in (tmp_path / "b0.log").read_text() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
     with study_log() as lines, contextlib.redirect_stdout(io.StringIO()):
-        launch(tmp_path, *second, rank=True)
+        try:
+            launch(tmp_path, *second, rank=True)
+        except NothingToDo as stop:  # on a busy machine the process ran, ranked and reported it all first
+            assert stop.code == 0 and any(line.startswith("sweep 'twin': nothing to do: ") for line in lines), lines
     assert proc.wait(timeout=600) == 0, (tmp_path / "b0.log").read_text()[-3000:]
     logs = (tmp_path / "b0.log").read_text() + "\n".join(lines)
     assert logs.count("val_fit") == 1 and "Callback" not in logs and "Traceback" not in logs, logs
