@@ -65,7 +65,7 @@ LONGEST_FIRST = (
 )
 
 
-# The development loop `python -m pytest -q -m "not slow"` (docs/development.md) leaves out the tests that take
+# The development loop `python -m pytest -q -m "not slow" -n 2` (docs/development.md) leaves out the tests that take
 # seconds each: end-to-end sweeps and launches as processes, servers, the simulator's calibration, estimation on
 # the real records' grids, Monte-Carlo.  Files marked slow themselves (pytestmark) are not repeated here; these
 # are marked here, in one place, from the durations of a full `-m "not slow"` run (a whole file, or one test with
@@ -87,6 +87,14 @@ SLOW = (
     "study/test_faults.py::test_a_sweep_with_an_impossible_config_is_refused_before_any_run",
     "study/test_faults.py::test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_config",
     "study/test_shutdown.py::test_a_signal_in_a_commit_is_raised_after_it_and_the_store_stays_writable",
+    "study/test_shutdown.py::test_sigterm_inside_omegaconf_between_jobs_ends_the_sweep_at_once_with_its_one_line",
+    "study/test_shutdown.py::test_a_worker_whose_launcher_dies_ends_once_its_job_has_marked_its_run",
+    "study/test_render.py::test_drain_takes_runs_from_the_back_of_the_queue_while_the_renderer_goes_on_from_the_front",
+    "study/test_references.py::test_the_ranking_waits_for_a_referenced_run_until_it_ends",
+    "study/test_references.py::test_the_wait_is_bounded_and_names_what_is_still_running",
+    "study/test_store.py::test_a_store_left_half_made_by_an_older_version_is_repaired_and_the_launch_says_so",
+    "study/test_store.py::test_a_full_disk_while_the_store_is_created_leaves_nothing_and_the_next_launch_works",
+    "test_bench.py::test_a_page_is_stale_when_what_it_measured_changes_and_names_its_command",
     "study/test_cli.py::test_maglev_command_answers_a_missing_store_in_one_line",
     "study/test_cli.py::test_study_py_refuses_a_typo_with_the_key_and_creates_no_run",
     "study/test_hostile.py::test_a_tracking_uri_mlflow_cannot_use_is_refused_in_one_line",  # three processes

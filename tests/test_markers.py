@@ -1,5 +1,5 @@
 """The slow and service lists of tests/conftest.py name tests that exist: a renamed or moved test would otherwise fall
-back into the development loop (`python -m pytest -q -m "not slow"`) or out of the service stage unnoticed."""
+back into the development loop (`python -m pytest -q -m "not slow" -n 2`) or out of the service stage unnoticed."""
 
 from __future__ import annotations
 
