@@ -163,9 +163,10 @@ def test_logging_quirk_zero_at_10():
 
 
 def _dominant(poles, Ts):
-    """(ωn, ζ) of the slowest complex pair, else of the slowest real pole (ζ = 1)."""
-    s = np.log(np.asarray(poles, dtype=complex)) / Ts
-    s = s[np.isfinite(s)]
+    """(ωn, ζ) of the slowest complex pair, else of the slowest real pole (ζ = 1); poles at the
+    origin (the delay's) have no continuous counterpart and are left out."""
+    poles = np.asarray(poles, dtype=complex)
+    s = np.log(poles[poles != 0]) / Ts
     cplx = s[s.imag > 1e-9]
     pick = cplx if cplx.size else s
     p = pick[np.argmin(np.abs(pick))]
