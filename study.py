@@ -38,5 +38,6 @@ if __name__ == "__main__":
     with shutdown.ending():
         try:
             main()
+            shutdown.raise_if_received()  # held since the last job, with no sweep callback to raise it
         except KeyboardInterrupt:  # Ctrl-C: the sweep's line says what it ended; no traceback
             raise SystemExit(130) from None

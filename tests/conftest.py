@@ -88,6 +88,8 @@ SLOW = (
     "study/test_faults.py::test_a_failed_run_has_its_error_tag_even_when_its_upload_fails_and_logs_its_config",
     "study/test_shutdown.py::test_a_signal_in_a_commit_is_raised_after_it_and_the_store_stays_writable",
     "study/test_shutdown.py::test_sigterm_inside_omegaconf_between_jobs_ends_the_sweep_at_once_with_its_one_line",
+    "study/test_shutdown.py::test_a_sigterm_held_between_jobs_ends_the_sweep_as_one_would_inside_a_job",
+    "study/test_shutdown.py::test_a_sweep_ended_by_an_error_leaves_no_signal_held_in_its_process",
     "study/test_shutdown.py::test_a_worker_whose_launcher_dies_ends_once_its_job_has_marked_its_run",
     "study/test_render.py::test_drain_takes_runs_from_the_back_of_the_queue_while_the_renderer_goes_on_from_the_front",
     "study/test_references.py::test_the_ranking_waits_for_a_referenced_run_until_it_ends",

@@ -25,7 +25,13 @@ class StudySweeper(BasicSweeper):
 
     def sweep(self, arguments: list[str]) -> Any:
         self.arguments = list(arguments)
-        return super().sweep(arguments)
+        try:
+            return super().sweep(arguments)
+        except BaseException:  # a job's error, raised once the jobs are done: the sweep's end is not reached
+            from maglev.study import shutdown
+
+            shutdown.raise_if_received()  # a signal held since the last job ends the sweep as it says
+            raise
 
     def split_arguments(self, overrides: list[Override], max_batch_size: int | None) -> list[list[list[str]]]:
         """The jobs of :func:`maglev.study.sweeper.expand` in batches of ``max_batch_size`` (the basic sweeper's

@@ -164,27 +164,29 @@ def check_sweep(config: DictConfig) -> list[dict]:
     parser = OverridesParser.create()
     composed: dict[tuple[str, ...], DictConfig] = {}
     checked: list[dict] = []
-    for overrides in jobs:
-        parsed = parser.parse_overrides(list(overrides))
-        plain = [o for o in parsed if not (o.is_add() or o.is_delete() or o.is_force_add() or o.package
-                                           or loader.repository.group_exists(o.key_or_group))]
-        base = tuple(o.input_line for o in parsed if o not in plain)
-        try:
-            if base not in composed:
-                full = loader.load_sweep_config(config, list(base))
-                composed[base] = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
-            cfg = composed[base].copy()
-            for o in plain:
-                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
-            job = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True)
-            check(job)
-            check_job_dir(config, parsed)
-            checked.append(job)
-        except StudyConfigError as exc:
-            shown = " ".join(o if len(o) <= 80 else f"{o[:60]}…" for o in overrides
-                             if not o.lstrip("+~").startswith(("tracking", "hydra")))
-            raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
-    shutdown.raise_if_received()  # the compositions above hold a signal for the job they would start
+    try:
+        for overrides in jobs:
+            parsed = parser.parse_overrides(list(overrides))
+            plain = [o for o in parsed if not (o.is_add() or o.is_delete() or o.is_force_add() or o.package
+                                               or loader.repository.group_exists(o.key_or_group))]
+            base = tuple(o.input_line for o in parsed if o not in plain)
+            try:
+                if base not in composed:
+                    full = loader.load_sweep_config(config, list(base))
+                    composed[base] = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
+                cfg = composed[base].copy()
+                for o in plain:
+                    OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
+                job = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True, throw_on_missing=True)
+                check(job)
+                check_job_dir(config, parsed)
+                checked.append(job)
+            except StudyConfigError as exc:
+                shown = " ".join(o if len(o) <= 80 else f"{o[:60]}…" for o in overrides
+                                 if not o.lstrip("+~").startswith(("tracking", "hydra")))
+                raise SweepRefused(f"maglev: sweep refused before any run: job {shown}: {exc}") from None
+    finally:  # the compositions hold a signal for the job they would start: raised here, refused or not
+        shutdown.raise_if_received()
     return checked
 
 

@@ -143,8 +143,8 @@ def run(cfg: DictConfig) -> float | None:
 def _run(cfg: DictConfig) -> float | None:
     from maglev.study import shutdown
 
+    shutdown.raise_if_received()  # a signal held since the last job, before install() could arm its handler again
     shutdown.install()  # joblib and submitit workers never run study.py's own installation
-    shutdown.raise_if_received()
     if shutdown.launcher() not in (None, os.getpid()):  # a worker of this machine's launcher: end with it
         shutdown.exit_with(shutdown.launcher())
     ctx = hydra_context()

@@ -49,6 +49,7 @@ _held = 0  # how many deferred() blocks the main thread is in
 _pending: int | None = None  # a signal that arrived in one, raised when the outermost ends
 _status: int | None = None  # the status this process exits with, once its main code has ended (:func:`ending`)
 _jobs = 0  # jobs this process is running (:func:`job`): their runs are marked before exit_with ends it
+_ran = False  # whether this process has started a job (:func:`job`), for :func:`final_line`
 _between = False  # Hydra's code runs between this process's jobs: signals held (:func:`between_jobs`)
 
 
@@ -187,7 +188,8 @@ def install(forward: bool = False) -> bool:
         return False
     _forward = _forward or forward
     sys.unraisablehook = _lost
-    signal.signal(signal.SIGTERM, _on_sigterm)
+    if received != signal.SIGTERM:  # after one, SIGTERM stays ignored: a second must not break the cleanup
+        signal.signal(signal.SIGTERM, _on_sigterm)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _on_sigint)
     return True
@@ -197,8 +199,9 @@ def final_line() -> None:
     """At exit of ``study.py``: the one line of a signal that ended it before a sweep or a run said so."""
     if received is not None and not reported:
         name = signal.Signals(received).name
-        print(f"maglev: stopped by {name}{' (Ctrl-C)' if received == signal.SIGINT else ''} before any run "
-              "was started", file=sys.stderr, flush=True)
+        when = "once its runs had started" if _ran else "before any run was started"
+        print(f"maglev: stopped by {name}{' (Ctrl-C)' if received == signal.SIGINT else ''} {when}", file=sys.stderr,
+              flush=True)
 
 
 @contextmanager
@@ -242,8 +245,9 @@ def skip_teardown(status: int | None = None) -> None:
 @contextmanager
 def job() -> Iterator[None]:
     """Around a job (one run): while it is in flight, :func:`exit_with` waits for it before ending the process."""
-    global _jobs
+    global _jobs, _ran
     _jobs += 1
+    _ran = True
     try:
         yield
     finally:

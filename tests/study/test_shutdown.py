@@ -8,6 +8,7 @@ Each case runs in its own process, since it installs signal handlers and signals
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 import time
@@ -198,3 +199,117 @@ def test_sigterm_inside_omegaconf_between_jobs_ends_the_sweep_at_once_with_its_o
         assert "[1/4] arx" in text and model_statuses(tmp_path) == {"FINISHED"}, text[-3000:]
     else:
         assert "[1/4]" not in text and model_statuses(tmp_path) == set(), text[-3000:]
+
+
+AFTER_A_JOB = """
+import os, runpy, signal, sys
+import hydra.core.utils as hydra_utils
+import maglev.study.job as job
+from maglev.study import callbacks
+
+case = sys.argv.pop(1)
+ended, sent = [], []
+run = job.run
+
+def counted(cfg):
+    out = run(cfg)
+    ended.append(1)
+    if case == "no sweep callback" and len(ended) == 2:  # the last job is over; Hydra's code goes on
+        print("SIGTERM after the last job", file=sys.stderr, flush=True)
+        os.kill(os.getpid(), signal.SIGTERM)
+    return out
+
+save = hydra_utils._save_config
+
+def saving(cfg, name, out):  # Hydra writes the next job's .hydra files: the signal is held until that job starts
+    if case == "twice" and ended and not sent:
+        sent.append(1)
+        print("SIGTERM while Hydra prepares the second job", file=sys.stderr, flush=True)
+        os.kill(os.getpid(), signal.SIGTERM)
+    return save(cfg, name, out)
+
+abort = callbacks.SweepCallback._abort
+
+def aborting(self):  # a second SIGTERM as the sweep's cleanup begins (Slurm and kill send more than one)
+    print("SIGTERM again in the cleanup", file=sys.stderr, flush=True)
+    os.kill(os.getpid(), signal.SIGTERM)
+    return abort(self)
+
+job.run = counted
+hydra_utils._save_config = saving
+callbacks.SweepCallback._abort = aborting
+sys.argv = sys.argv[1:]
+runpy.run_path(sys.argv[0], run_name="__main__")
+"""
+
+
+@pytest.mark.parametrize("case", ["twice", "no sweep callback"])
+def test_a_sigterm_held_between_jobs_ends_the_sweep_as_one_would_inside_a_job(tmp_path, case):
+    """A SIGTERM held after a job is raised at the next job's start: the handler stays off then, so a second
+    SIGTERM does not break the cleanup (before: the job's start armed it again, and the second one left the
+    parent RUNNING and no sweep line).  Without the sweep callback that raises it at the sweep's end, study.py
+    raises it after Hydra returns: exit 143 (before: 0)."""
+    import sqlite3
+
+    from .harness import LEAN, REPO, TINY, model_statuses, store_overrides
+
+    drop = ["~hydra.callbacks.maglev_sweep"] if case == "no sweep callback" else []
+    cmd = [sys.executable, "-c", AFTER_A_JOB, case, str(REPO / "study.py"), "-m", "dataset=binary_a025",
+           "structure=arx,oe", *TINY, *LEAN, *store_overrides(tmp_path), "~hydra.callbacks.maglev_rank", *drop]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=240, cwd=tmp_path, env=process_env())
+    text = out.stdout + out.stderr
+    assert out.returncode == 143 and "Traceback" not in text, text[-3000:]
+    if case == "twice":
+        assert "SIGTERM while Hydra prepares the second job" in text and "SIGTERM again in the cleanup" in text, text
+        assert [line for line in text.splitlines() if "sweep stopped (SIGTERM)" in line], text[-3000:]
+        with contextlib.closing(sqlite3.connect(tmp_path / "mlflow.db")) as con:
+            parents = con.execute("SELECT r.status FROM runs r JOIN tags t ON t.run_uuid = r.run_uuid "
+                                  "WHERE t.key = 'kind' AND t.value = 'sweep'").fetchall()
+        assert parents == [("KILLED",)] and model_statuses(tmp_path) == {"FINISHED"}, (parents, text[-3000:])
+    else:
+        assert model_statuses(tmp_path) == {"FINISHED"}, text[-3000:]
+        assert text.rstrip().endswith("maglev: stopped by SIGTERM once its runs had started"), text[-3000:]
+
+
+HELD_IN_PROCESS = """
+import os, signal, sys
+sys.path.insert(0, sys.argv[1])
+from pathlib import Path
+from tests.study.harness import LEAN, TINY, launch
+import maglev.study.job as job
+from maglev.study import shutdown
+
+def failing(cfg):
+    raise RuntimeError("estimation failed")
+
+store = Path(sys.argv[2])
+for case, overrides in (("refused", ["study.resid_lags=25,1000"]),
+                        ("failed", ["study.fail_on_error=true", "structure.order=2,3"])):
+    if case == "failed":
+        job.estimate_run = failing
+    try:
+        launch(store / case, "dataset=binary_a025", "structure=arx", *TINY, *LEAN, *overrides)
+    except BaseException as exc:
+        print(case, "ended by", type(exc).__name__, flush=True)
+    shutdown.install()
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):
+            sum(range(1000))
+        print(case, "then Ctrl-C was held", flush=True)
+    except KeyboardInterrupt:
+        print(case, "then Ctrl-C raised", flush=True)
+    shutdown.received = None
+"""
+
+
+def test_a_sweep_ended_by_an_error_leaves_no_signal_held_in_its_process(tmp_path):
+    """In-process (a notebook, the tests): a sweep refused by its checks after composing configs, or ended by a
+    job's error, leaves signals as it found them (before: Ctrl-C was held for good, the process uninterruptible)."""
+    from .harness import REPO
+
+    out = subprocess.run([sys.executable, "-c", HELD_IN_PROCESS, str(REPO), str(tmp_path)], capture_output=True,
+                         text=True, timeout=240, env=process_env(), preexec_fn=default_ctrl_c)
+    lines = [line for line in out.stdout.splitlines() if line.startswith(("refused ", "failed "))]  # not the log
+    assert lines == ["refused ended by SweepRefused", "refused then Ctrl-C raised",
+                     "failed ended by RuntimeError", "failed then Ctrl-C raised"], out.stdout + out.stderr[-3000:]
