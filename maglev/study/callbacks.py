@@ -34,7 +34,8 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from maglev.study import credentials, shutdown
-from maglev.study.config import StudyConfigError, check, check_lab, config_hash, report_file_name, task_config
+from maglev.study.config import (StudyConfigError, check, check_lab, config_hash, report_file_name, runs_jobs_here,
+                                 task_config)
 from maglev.study.lazy import lazy_module, loaded
 
 # imported on first use: a relaunch with nothing to do (maglev.study.resume) ends before MLflow is imported
@@ -159,7 +160,7 @@ def check_sweep(config: DictConfig) -> list[dict]:
     if not jobs or not GlobalHydra.instance().is_initialized():
         return []
     loader = GlobalHydra.instance().config_loader()
-    if str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher"):
+    if runs_jobs_here(config.hydra.launcher):
         memoise(loader)  # the sweeper's validation and the launcher reuse these compositions
     parser = OverridesParser.create()
     composed: dict[tuple[str, ...], DictConfig] = {}
@@ -267,7 +268,7 @@ class SweepCallback(Callback):
         name = task["study"]["name"]
         size = sweep_size(config)
         log.info("sweep %r: %s jobs; checking their configs", name, size or "?")  # the first line, within seconds
-        here = str(config.hydra.launcher.get("_target_", "")).endswith("BasicLauncher")  # jobs run in this process
+        here = runs_jobs_here(config.hydra.launcher)
         drawing = bool(task["tracking"]["log_figures"]) and here
         if drawing and new_sweep(task["tracking"]["uri"], task["tracking"]["experiment"], sweep_id(config, task)):
             # a new sweep in a local store runs jobs: the renderer imports while the configs are checked

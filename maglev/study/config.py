@@ -34,6 +34,12 @@ class StudyConfigError(ValueError):
     """A config that passed the schema but cannot describe a run (says which key is wrong)."""
 
 
+def runs_jobs_here(launcher: DictConfig) -> bool:
+    """Whether ``hydra.launcher`` is Hydra's basic launcher, which runs a sweep's jobs in the launching process,
+    one after another (joblib and submitit run them in other processes)."""
+    return str(launcher.get("_target_", "")).endswith("BasicLauncher")
+
+
 def plain_config(cfg: DictConfig) -> dict:
     """The resolved task config as plain Python (enums as strings), with the schema re-applied.
 

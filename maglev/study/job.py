@@ -23,7 +23,7 @@ from omegaconf import DictConfig
 
 from maglev.study import credentials
 from maglev.study import progress as progress_
-from maglev.study.config import StudyConfigError, check, config_hash, flatten, plain_config
+from maglev.study.config import StudyConfigError, check, config_hash, flatten, plain_config, runs_jobs_here
 from maglev.study.identify import estimate_run, orders_string, run_label, validate
 from maglev.study.lazy import lazy_module
 
@@ -38,7 +38,8 @@ ENTRY = "study.py"  # the runs' source in the MLflow UI
 
 
 def hydra_context() -> dict:
-    """Output dir, overrides and sweep dir of the running Hydra job ({} outside Hydra)."""
+    """Output dir, overrides and sweep dir of the running Hydra job, and whether it is one of a sweep's jobs run
+    one after another in this process ({} outside Hydra)."""
     try:
         from hydra.core.hydra_config import HydraConfig
         from hydra.types import RunMode
@@ -49,7 +50,7 @@ def hydra_context() -> dict:
     multirun = hc.mode == RunMode.MULTIRUN
     return {"output_dir": hc.runtime.output_dir, "overrides": list(hc.overrides.task),
             "sweep_dir": hc.sweep.dir if multirun else None, "job_num": hc.job.num if multirun else None,
-            "launcher": str(hc.launcher.get("_target_", ""))}
+            "sequential": multirun and runs_jobs_here(hc.launcher)}
 
 
 def sweep_size() -> int | None:
@@ -68,7 +69,7 @@ def progress(ctx: dict) -> str:
 
 def time_left(ctx: dict) -> str:
     """What is left of the sweep after this job (:func:`maglev.study.progress.time_left`)."""
-    return progress_.time_left(ctx.get("job_num"), sweep_size(), ctx.get("launcher", "").endswith("BasicLauncher"))
+    return progress_.time_left(ctx.get("job_num"), sweep_size(), ctx.get("sequential", False))
 
 
 def wait_for_bla(plain: dict, label: str) -> None:
@@ -135,8 +136,7 @@ def run(cfg: DictConfig) -> float | None:
         try:
             return _run(cfg)
         finally:
-            ctx = hydra_context()
-            if ctx.get("job_num") is not None and ctx["launcher"].endswith("BasicLauncher"):
+            if hydra_context().get("sequential"):
                 shutdown.between_jobs()  # Hydra goes on in OmegaConf: a signal is raised at the next config or job
 
 
@@ -185,8 +185,7 @@ def _run(cfg: DictConfig) -> float | None:
         log.info("%s", skip_message(label, holder, chash))
         return None
     # the rest of the run on the background renderer: a sweep on the basic launcher that goes on after a failure
-    background = (plain["tracking"]["log_figures"] and not plain["study"]["fail_on_error"]
-                  and ctx.get("job_num") is not None and ctx["launcher"].endswith("BasicLauncher"))
+    background = plain["tracking"]["log_figures"] and not plain["study"]["fail_on_error"] and ctx.get("sequential")
     try:
         tracking.log_batch(client, run_id, params={k: credentials.redact(v) for k, v in flatten(plain).items()})
         if ctx.get("job_num") is not None and not background:
