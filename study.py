@@ -11,6 +11,9 @@ The work is in ``maglev.study`` (see docs/tracking.md for what every run logs).
 import os
 import warnings
 
+from maglev.study import heap
+
+heap.hold()  # no full garbage collection while the libraries are imported: settled once they are (maglev.study.heap)
 os.environ["MPLBACKEND"] = "Agg"  # figures are files; importing matplotlib here would cost every launch 0.2 s
 warnings.filterwarnings("ignore", message="The .*noload.* loader strategy is deprecated")
 

@@ -15,6 +15,7 @@ Hydra, OmegaConf and MLflow are imported only in this package.  One module per j
 * :mod:`~maglev.study.compose`   each job's config composed once per launch
 * :mod:`~maglev.study.progress`  what a running sweep says about itself, and the time left
 * :mod:`~maglev.study.lazy`      modules imported on first use (a launch that ends early never loads MLflow)
+* :mod:`~maglev.study.heap`      full garbage collections held off while a study process imports
 * :mod:`~maglev.study.sweeper`   the jobs of a sweep: every combination, with an order grid per structure
 * :mod:`~maglev.study.callbacks` the sweep's parent run and its end-of-sweep ranking (Hydra callbacks)
 * :mod:`~maglev.study.ranking`   rank a sweep, the lab's comparisons, the ranking run

@@ -33,7 +33,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from maglev.study import credentials, shutdown
+from maglev.study import credentials, heap, shutdown
 from maglev.study.config import (StudyConfigError, check, check_lab, config_hash, report_file_name, runs_jobs_here,
                                  task_config)
 from maglev.study.lazy import lazy_module, loaded
@@ -299,6 +299,7 @@ class SweepCallback(Callback):
             render.start(tracking.tracking_env(task["tracking"]))
         if not server:  # a SQLite store is made while the processes above import
             client, exp_id = tracking.connect(task["tracking"])
+        heap.settle()  # MLflow and the configs' checks have imported what the runs need
         self.client, self.exp_id = client, exp_id
         sid = sweep_id(config, task)
         sweep_dir = Path(config.hydra.sweep.dir).resolve()

@@ -143,7 +143,9 @@ def _estimate_blas(datasets: list[dict]) -> None:
     classes of one length in one batch; the default sweep's three: 35 s instead of 51 s, 2026-11-27)."""
     from maglev.sim.bla import blas
     from maglev.sim.plant import rig
+    from maglev.study import heap
 
+    heap.settle()  # a process started by study.py held full collections while it imported
     groups: dict[tuple, list[dict]] = {}
     for ds in datasets:
         groups.setdefault((plant_name(ds), _bla_preprocess(ds)), []).append(ds)

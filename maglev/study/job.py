@@ -21,7 +21,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
-from maglev.study import credentials
+from maglev.study import credentials, heap
 from maglev.study import progress as progress_
 from maglev.study.config import StudyConfigError, check, config_hash, flatten, plain_config, runs_jobs_here
 from maglev.study.identify import estimate_run, orders_string, run_label, validate
@@ -156,6 +156,7 @@ def _run(cfg: DictConfig) -> float | None:
         client, exp_id = tracking.connect(plain["tracking"], reuse=ctx.get("sweep_dir") is not None)
     except tracking.StoreProblem as exc:
         raise RunRefused(f"maglev: {exc}") from None
+    heap.settle()  # a single run's or a joblib worker's libraries are in (a sweep's launcher settled at its start)
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
 
     artifact_uris: dict[str, str] = {}  # the created run's: its uploads need not read the run back

@@ -146,6 +146,9 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     import os
     import signal
 
+    from maglev.study import heap
+
+    heap.hold()  # settled once drawing's libraries are in, below
     # Ctrl-C reaches the whole process group: the renderer ends at once and quietly (the system's default, no
     # traceback), as at the SIGTERM its launcher forwards; the launcher marks the runs it left KILLED (abandon).
     # Ignored, it drew every run queued before the launcher could exit: the executor's exit hook waits for
@@ -169,6 +172,8 @@ def _worker_start(env: dict[str, str], launcher: int) -> None:
     import maglev.study.figures  # noqa: F401
     import maglev.study.identify  # noqa: F401  (the runs' validation: maglev.study.finish)
     import maglev.study.tracking  # noqa: F401
+
+    heap.settle()
 
 
 def start(env: dict[str, str] | None = None) -> bool:

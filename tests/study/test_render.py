@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import time
@@ -88,6 +89,9 @@ def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store)
     render.submit(uri, run, inputs=None)
     assert render.drain() == {} and client.get_run(run).info.status == "FINISHED"
     assert next(iter(render._pool._processes)) == pid  # the same process drew it
+    # it imported with full garbage collections held off, then froze its libraries (maglev.study.heap)
+    assert render._pool.submit(gc.get_threshold).result(timeout=60) == gc.get_threshold()
+    assert render._pool.submit(gc.get_freeze_count).result(timeout=60) > 100_000
 
 
 def test_drain_draws_the_runs_the_busy_renderer_has_not_started(store):
