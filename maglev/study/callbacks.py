@@ -151,7 +151,7 @@ def check_sweep(config: DictConfig) -> list[dict]:
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from maglev.study.compose import memoise
+    from maglev.study.compose import memoise, sets_a_value
 
     try:
         jobs = sweep_jobs(config)
@@ -168,8 +168,7 @@ def check_sweep(config: DictConfig) -> list[dict]:
     try:
         for overrides in jobs:
             parsed = parser.parse_overrides(list(overrides))
-            plain = [o for o in parsed if not (o.is_add() or o.is_delete() or o.is_force_add() or o.package
-                                               or loader.repository.group_exists(o.key_or_group))]
+            plain = [o for o in parsed if sets_a_value(o, loader.repository)]
             base = tuple(o.input_line for o in parsed if o not in plain)
             try:
                 if base not in composed:

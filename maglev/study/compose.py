@@ -22,6 +22,15 @@ from __future__ import annotations
 import copy
 
 
+def sets_a_value(override, repository) -> bool:
+    """Whether a job's override sets a value on the composed config (what Hydra applies after composing the
+    defaults), rather than choosing a config group, adding, deleting or moving a key: jobs that differ only in
+    such overrides share one composition (here and in :func:`maglev.study.callbacks.check_sweep`)."""
+    o = override
+    return not (o.is_add() or o.is_delete() or o.is_force_add() or o.package or o.is_hydra_override()
+                or o.is_sweep_override() or repository.group_exists(o.key_or_group))
+
+
 def memoise(loader) -> None:
     """Make ``loader.load_sweep_config`` (Hydra's config loader of this launch) compose each choice of config
     groups once and apply a job's plain value overrides to a copy."""
@@ -37,11 +46,6 @@ def memoise(loader) -> None:
     parser = OverridesParser.create()
     memo: dict[tuple, object] = {}
 
-    def plain(o) -> bool:
-        """A value set on the composed config: what Hydra applies after composing the defaults."""
-        return not (o.is_add() or o.is_delete() or o.is_force_add() or o.package or o.is_hydra_override()
-                    or o.is_sweep_override() or loader.repository.group_exists(o.key_or_group))
-
     def load_sweep_config(master_config, sweep_overrides):
         shutdown.raise_if_received()  # a signal held since the last config or job: raised here, outside OmegaConf
         with shutdown.deferred():
@@ -51,8 +55,8 @@ def memoise(loader) -> None:
 
     def composed(master_config, sweep_overrides):
         parsed = parser.parse_overrides(list(sweep_overrides))
-        values = [o for o in parsed if plain(o)]
-        groups = [o.input_line for o in parsed if not plain(o)]
+        values = [o for o in parsed if sets_a_value(o, loader.repository)]
+        groups = [o.input_line for o in parsed if o not in values]
         key = (id(master_config), tuple(groups))
         if key not in memo:
             memo[key] = compose(master_config, groups)
