@@ -90,7 +90,7 @@ def test_start_spawns_the_renderer_before_any_run_and_it_draws_afterwards(store)
     assert render.drain() == {} and client.get_run(run).info.status == "FINISHED"
     assert next(iter(render._pool._processes)) == pid  # the same process drew it
     # it imported with full garbage collections held off, then froze its libraries (maglev.study.heap)
-    assert render._pool.submit(gc.get_threshold).result(timeout=60) == gc.get_threshold()
+    assert render._pool.submit(gc.get_threshold).result(timeout=60)[2] < 1_000_000  # held no longer
     assert render._pool.submit(gc.get_freeze_count).result(timeout=60) > 100_000
 
 
