@@ -11,7 +11,8 @@ names the key.  Orders live in per-structure schemas: ``structure.na`` exists fo
 defaults to it (``na: ${.order}``), so one sweep axis ``structure.order=2,3`` works
 for all structures, while ``structure.na=3`` still overrides a single order.
 
-The resolver ``${maglev.root:}`` gives the project root (:func:`maglev.paths.project_root`).
+The resolver ``${maglev.root:}`` gives the project root (:func:`maglev.paths.project_root`).  Importing
+this module also has each config file parsed once per process (:func:`maglev.study.compose.parse_each_file_once`).
 """
 
 from __future__ import annotations
@@ -24,9 +25,12 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from maglev.paths import project_root
+from maglev.study import compose
 from maglev.structures import get as get_structure
 from maglev.structures import names as structure_names
 
+
+compose.parse_each_file_once()
 
 if not OmegaConf.has_resolver("maglev.root"):
     OmegaConf.register_new_resolver("maglev.root", lambda: str(project_root()))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from omegaconf import OmegaConf
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
@@ -46,3 +47,48 @@ def test_every_job_of_the_lab_sweep_gets_hydras_own_config_from_one_composition_
             configs[0].structure.name = "changed"  # a job's config is its own
         assert len(composed) == len(set(composed)) == 12
         assert configs[0].hydra.job.override_dirname == "dataset=uniform_narrow,structure.order=4,structure=arx"
+
+
+def test_a_composition_from_files_parsed_once_is_hydras_own_and_each_load_a_new_config(monkeypatch, tmp_path):
+    """Each config file's YAML is parsed once per process (:func:`maglev.study.compose.parse_each_file_once`,
+    installed by importing the schemas): the default sweep's composition is the one OmegaConf's own loader
+    gives, a file read again is not parsed again, and each load is a config of its own (Hydra edits them)."""
+    import yaml
+    from hydra import compose, initialize_config_dir
+
+    import maglev.study.schema  # noqa: F401
+
+    def composed():
+        with initialize_config_dir(version_base="1.3", config_dir=str(CONF)):
+            return OmegaConf.to_yaml(compose("config", ["+sweep=lab", "dataset=binary_a025", "structure=bj"],
+                                             return_hydra_config=True))
+
+    once = composed()
+    with monkeypatch.context() as own:
+        own.setattr(OmegaConf, "load", staticmethod(OmegaConf.load.original))
+        assert composed() == once
+
+    path = tmp_path / "fresh.yaml"
+    path.write_text(f"defaults:\n  - base\nname: {tmp_path.name}\nx: [1, 2.5e-3, .inf]\n")
+    parses = []
+    parse = yaml.load
+    monkeypatch.setattr(yaml, "load", lambda *args, **kwargs: parses.append(1) or parse(*args, **kwargs))
+    loads = []
+    for _ in range(3):
+        with open(path, encoding="utf-8") as f:
+            loads.append(OmegaConf.load(f))
+    assert len(parses) == 1
+    loads[0].pop("defaults")  # as Hydra does with what it loads
+    assert loads[1] == loads[2] == OmegaConf.load.original(path) and "defaults" not in loads[0]
+
+
+def test_a_config_file_that_does_not_parse_is_refused_naming_it(tmp_path):
+    import yaml
+
+    import maglev.study.schema  # noqa: F401
+
+    path = tmp_path / "broken.yaml"
+    path.write_text("name: x\nx: [1, 2\n")
+    for _ in range(2):
+        with open(path, encoding="utf-8") as f, pytest.raises(yaml.YAMLError, match=f'in "{path}", line 3'):
+            OmegaConf.load(f)
