@@ -21,6 +21,10 @@ import pytest  # noqa: E402
 matplotlib.use("Agg")  # before anything imports pyplot (python-control does)
 
 from maglev.paths import refdata_dir  # noqa: E402
+from maglev.study import heap  # noqa: E402
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    heap.hold()  # while the worker collects (imports every test module and its libraries): see settled_libraries
 
 REPO = Path(__file__).resolve().parents[1]
 TESTS = Path(__file__).resolve().parent
@@ -184,16 +188,15 @@ def refdata() -> Path:
 @pytest.fixture(scope="session", autouse=True)
 def settled_libraries() -> None:
     """In each pytest-xdist worker (the README's suite, the fast loop): the libraries its tests use imported
-    first and frozen, as study.py does (:mod:`maglev.study.heap`).  A worker holds ~0.4 M of their objects,
-    which every full garbage collection walked again (0.2-0.3 s each, some 30 per worker).  What the tests make
-    after that and keep for the session (stores, cached records) grows to another 0.2-0.4 M objects, so a worker
-    collects its full generation a tenth as often as Python's default: over a whole suite 14.6 s of collections
-    in the two workers, 7.4 s so, with either worker's peak memory still under 0.8 GB."""
+    first and frozen, as study.py does (:mod:`maglev.study.heap`), with full collections held off from this
+    file's import, before the worker collects (0.8 s of full collections in a collection otherwise).  A worker
+    holds ~0.4 M of their objects, which every full garbage collection walked again (0.2-0.3 s each, some 30
+    per worker).  What the tests make after that and keep for the session (stores, cached records) grows to
+    another 0.2-0.4 M objects, so a worker collects its full generation a tenth as often as Python's default:
+    over a whole suite 14.6 s of collections in the two workers, 7.4 s so, with either worker's peak memory
+    still under 0.8 GB."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         return
-    from maglev.study import heap
-
-    heap.hold()
     import control  # noqa: F401
     import hydra  # noqa: F401
     import mlflow.store.tracking.sqlalchemy_store  # noqa: F401
