@@ -3,9 +3,10 @@
 A study process imports Hydra, MLflow (with SQLAlchemy and pandas), SciPy and maglev before its first
 run: some 350 000 objects that live as long as the process.  Python's cyclic collector walks all of
 them at every full collection, and the imports themselves set off several.  So ``study.py`` (and the
-processes it spawns, which run its first lines again: the figure renderer, the BLA process) holds full
-collections off from its start (:func:`hold`; the young generations are still collected, so
-short-lived garbage cycles are freed as before) and, once its libraries are in, moves what it holds to
+processes it spawns, which run its first lines again: the figure renderer, the BLA process; and the
+workers of ``hydra/launcher=parallel``, from joblib's initializer) holds full collections off from its
+start (:func:`hold`; the young generations are still collected, so short-lived garbage cycles are freed
+as before) and, once its libraries are in, moves what it holds to
 the permanent generation the collector never walks (:func:`settle`, :func:`gc.freeze`), then collects
 as usual: a full collection walks only what the process made since.  What a launch gains:
 docs/benchmarks-study.md.

@@ -156,7 +156,7 @@ def _run(cfg: DictConfig) -> float | None:
         client, exp_id = tracking.connect(plain["tracking"], reuse=ctx.get("sweep_dir") is not None)
     except tracking.StoreProblem as exc:
         raise RunRefused(f"maglev: {exc}") from None
-    heap.settle()  # a single run's libraries are in (a sweep settles at its start)
+    heap.settle()  # a single run's or a joblib worker's first job's libraries are in (a sweep settles at its start)
     parent = tracking.sweep_parent(ctx.get("sweep_dir"))
 
     artifact_uris: dict[str, str] = {}  # the created run's: its uploads need not read the run back

@@ -191,7 +191,8 @@ def test_sweep_configs_declare_the_sweep(name, n_datasets):
 
 def test_launcher_configs_exist():
     cfg = cfg_for(["hydra/launcher=parallel"], hydra=True)
-    assert cfg.hydra.launcher.n_jobs == 2 and "joblib" in cfg.hydra.launcher._target_
+    assert cfg.hydra.launcher.n_jobs == 2
+    assert cfg.hydra.launcher._target_ == "hydra_plugins.maglev_launcher.parallel.JoblibLauncher"  # joblib's
     assert cfg_for(hydra=True).hydra.launcher._target_.endswith("BasicLauncher")
     assert (CONF / "hydra" / "launcher" / "slurm.yaml").is_file()
 

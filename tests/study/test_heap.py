@@ -76,3 +76,24 @@ def test_a_sweep_settles_at_its_start_and_a_single_run_once_it_has_its_store(hel
         launch(migrated_store, "dataset=binary_a025", "structure=arx", *TINY, *LEAN, multirun=multirun)
     assert gc.get_threshold() == thresholds and gc.get_freeze_count() > frozen
     assert seen == ([thresholds[2]] if multirun else [1_000_000])  # a sweep's job starts settled
+
+
+def test_the_parallel_launchers_workers_start_held():
+    """``hydra/launcher=parallel`` is joblib's launcher with :func:`heap.hold` as each worker's initializer: a
+    worker holds full collections from its start, through its imports, until its first job has its store and
+    settles (``job.run``, as a single run does)."""
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher", reason="hydra-joblib-launcher is not installed")
+    from hydra import compose, initialize_config_dir
+    from hydra.utils import instantiate
+    from joblib import Parallel, delayed
+
+    import maglev.study.schema  # noqa: F401
+
+    with initialize_config_dir(version_base="1.3", config_dir=str(REPO / "conf")):
+        conf = compose("config", ["hydra/launcher=parallel"], return_hydra_config=True).hydra.launcher
+    launcher = instantiate(conf)
+    assert launcher.joblib["initializer"] is heap.hold
+    # new workers (another idle timeout than an earlier parallel sweep's in this process, whose workers settled)
+    fresh = {**launcher.joblib, "backend": "loky", "idle_worker_timeout": 61}
+    workers = Parallel(**fresh)(delayed(gc.get_threshold)() for _ in range(4))
+    assert [threshold[2] for threshold in workers] == [1_000_000] * 4
