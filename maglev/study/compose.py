@@ -12,9 +12,10 @@ The default sweep composes 12 configs instead of 42.  The sweep callback install
 own check (:func:`maglev.study.callbacks.check_sweep`, which shares the compositions); the
 launchers that compose in other processes (joblib, submitit) are left alone.
 
-Every composition reads each of its YAML files again (13 for a job of the default sweep), and parsing the
-YAML is an eighth of a composition's time: :func:`parse_each_file_once` keeps what each file's text parses to for
-the process (installed when :mod:`maglev.study.schema` is imported, before anything composes).
+Every composition reads each of its YAML files again (13 for a job of the default sweep), and parsing
+the YAML is an eighth of a composition's time: :func:`parse_each_file_once` keeps what each file's text
+parses to for the process (installed when :mod:`maglev.study.schema` is imported, before anything
+composes).
 
 A signal that arrives while a config is composed, or while Hydra edits it before its job starts, is raised
 at the next call here or at the job's start (:func:`maglev.study.shutdown.between_jobs`): raised inside

@@ -6,10 +6,9 @@ them at every full collection, and the imports themselves set off several.  So `
 processes it spawns, which run its first lines again: the figure renderer, the BLA process; and the
 workers of ``hydra/launcher=parallel``, from joblib's initializer) holds full collections off from its
 start (:func:`hold`; the young generations are still collected, so short-lived garbage cycles are freed
-as before) and, once its libraries are in, moves what it holds to
-the permanent generation the collector never walks (:func:`settle`, :func:`gc.freeze`), then collects
-as usual: a full collection walks only what the process made since.  What a launch gains:
-docs/benchmarks-study.md.
+as before) and, once its libraries are in, moves what it holds to the permanent generation the collector
+never walks (:func:`settle`, :func:`gc.freeze`), then collects as usual: a full collection walks only
+what the process made since.  What a launch gains: docs/benchmarks-study.md.
 """
 
 from __future__ import annotations
