@@ -16,4 +16,5 @@ if _Joblib is not None:
         def __init__(self, **kwargs) -> None:
             from maglev.study import heap
 
-            super().__init__(**kwargs, initializer=heap.hold)  # joblib hands it to each new loky worker
+            kwargs.setdefault("initializer", heap.hold)  # joblib hands it to each new loky worker
+            super().__init__(**kwargs)

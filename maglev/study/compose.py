@@ -14,8 +14,8 @@ launchers that compose in other processes (joblib, submitit) are left alone.
 
 Every composition reads each of its YAML files again (13 for a job of the default sweep), and parsing
 the YAML is an eighth of a composition's time: :func:`parse_each_file_once` keeps what each file's text
-parses to for the process (installed when :mod:`maglev.study.schema` is imported, before anything
-composes).
+parses to for the process (installed when :mod:`maglev.study.schema` is imported: in ``study.py`` before
+it composes; a joblib worker's first job has composed by then).
 
 A signal that arrives while a config is composed, or while Hydra edits it before its job starts, is raised
 at the next call here or at the job's start (:func:`maglev.study.shutdown.between_jobs`): raised inside
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import copy
 
-_PARSED: dict[str, object] = {}  # a config file's text -> its YAML, parsed once per process
+_PARSED: dict[str | bytes, object] = {}  # a config file's text -> its YAML, parsed once per process
 
 
 def sets_a_value(override, repository) -> bool:
@@ -86,8 +86,8 @@ def memoise(loader) -> None:
 def parse_each_file_once() -> None:
     """Make ``OmegaConf.load`` of a file (Hydra's only reader of config files) parse each text once per process
     and build the config from a copy of what it parsed; what OmegaConf.load returns is unchanged (a new config
-    each time: Hydra edits what it loads).  A text that does not parse (or parses to what OmegaConf refuses)
-    is handed to OmegaConf as before, whose error names the file."""
+    each time: Hydra edits what it loads).  A text that does not parse (or parses to what OmegaConf refuses),
+    a path and a stream that cannot seek are handed to OmegaConf as before, whose error names the file."""
     import yaml
     from omegaconf import OmegaConf
     from omegaconf._utils import get_yaml_loader
@@ -97,10 +97,10 @@ def parse_each_file_once() -> None:
     load = OmegaConf.load
 
     def parsed_once(file_):
-        if not hasattr(file_, "read"):  # a path: OmegaConf opens it
-            return load(file_)
-        text = file_.read()
-        text = text.decode("utf-8") if isinstance(text, bytes) else text
+        if not (hasattr(file_, "read") and hasattr(file_, "seekable") and file_.seekable()):
+            return load(file_)  # a path (OmegaConf opens it) or a stream that cannot be read again
+        start = file_.tell()
+        text = file_.read()  # str, or bytes (a zipped package's config: YAML detects their encoding)
         if text not in _PARSED:
             try:
                 tree = yaml.load(text, Loader=get_yaml_loader())
@@ -108,7 +108,7 @@ def parse_each_file_once() -> None:
             except yaml.YAMLError:
                 usable = False
             if not usable:  # OmegaConf's own error, naming the file
-                file_.seek(0)
+                file_.seek(start)
                 return load(file_)
             _PARSED[text] = tree
         return OmegaConf.create() if _PARSED[text] is None else OmegaConf.create(copy.deepcopy(_PARSED[text]))

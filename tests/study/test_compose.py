@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import io
+import re
+
 import pytest
 from omegaconf import OmegaConf
 
@@ -89,6 +92,18 @@ def test_a_config_file_that_does_not_parse_is_refused_naming_it(tmp_path):
 
     path = tmp_path / "broken.yaml"
     path.write_text("name: x\nx: [1, 2\n")
+    where = re.escape(f'in "{path}", line 3')
     for _ in range(2):
-        with open(path, encoding="utf-8") as f, pytest.raises(yaml.YAMLError, match=f'in "{path}", line 3'):
+        with open(path, encoding="utf-8") as f, pytest.raises(yaml.YAMLError, match=where):
             OmegaConf.load(f)
+
+
+@pytest.mark.parametrize("encoding", ["utf-8", "utf-16"])
+def test_a_config_read_as_bytes_is_what_omegaconfs_loader_makes_of_them(encoding):
+    """A zipped package's config files reach OmegaConf.load as bytes, whose encoding YAML detects."""
+    import maglev.study.schema  # noqa: F401
+
+    raw = f"name: bytes_{encoding}\nx: [1, 2.5e-3]\n".encode(encoding)
+    expected = OmegaConf.load.original(io.BytesIO(raw))
+    assert OmegaConf.load(io.BytesIO(raw)) == OmegaConf.load(io.BytesIO(raw)) == expected
+    assert expected.name == f"bytes_{encoding}"
