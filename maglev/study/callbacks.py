@@ -151,7 +151,7 @@ def check_sweep(config: DictConfig) -> list[dict]:
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from maglev.study.compose import memoise, sets_a_value
+    from maglev.study.compose import memoise, split_overrides
 
     try:
         jobs = sweep_jobs(config)
@@ -168,8 +168,7 @@ def check_sweep(config: DictConfig) -> list[dict]:
     try:
         for overrides in jobs:
             parsed = parser.parse_overrides(list(overrides))
-            plain = [o for o in parsed if sets_a_value(o, loader.repository)]
-            base = tuple(o.input_line for o in parsed if o not in plain)
+            plain, base = split_overrides(parsed, loader.repository)
             try:
                 if base not in composed:
                     full = loader.load_sweep_config(config, list(base))

@@ -29,13 +29,19 @@ import copy
 _PARSED: dict[str | bytes, object] = {}  # a config file's text -> its YAML, parsed once per process
 
 
-def sets_a_value(override, repository) -> bool:
-    """Whether a job's override sets a value on the composed config (what Hydra applies after composing the
-    defaults), rather than choosing a config group, adding, deleting or moving a key: jobs that differ only in
-    such overrides share one composition (here and in :func:`maglev.study.callbacks.check_sweep`)."""
-    o = override
-    return not (o.is_add() or o.is_delete() or o.is_force_add() or o.package or o.is_hydra_override()
-                or o.is_sweep_override() or repository.group_exists(o.key_or_group))
+def split_overrides(parsed, repository) -> tuple[list, tuple[str, ...]]:
+    """A job's parsed overrides as (those that set a value on the composed config, what Hydra applies after
+    composing the defaults; the input lines of the others, which choose config groups, add, delete or move a
+    key): jobs whose others are the same share one composition (here and in
+    :func:`maglev.study.callbacks.check_sweep`)."""
+    values, groups = [], []
+    for o in parsed:
+        if (o.is_add() or o.is_delete() or o.is_force_add() or o.package or o.is_hydra_override()
+                or o.is_sweep_override() or repository.group_exists(o.key_or_group)):
+            groups.append(o.input_line)
+        else:
+            values.append(o)
+    return values, tuple(groups)
 
 
 def memoise(loader) -> None:
@@ -62,11 +68,10 @@ def memoise(loader) -> None:
 
     def composed(master_config, sweep_overrides):
         parsed = parser.parse_overrides(list(sweep_overrides))
-        values = [o for o in parsed if sets_a_value(o, loader.repository)]
-        groups = [o.input_line for o in parsed if o not in values]
-        key = (id(master_config), tuple(groups))
+        values, groups = split_overrides(parsed, loader.repository)
+        key = (id(master_config), groups)
         if key not in memo:
-            memo[key] = compose(master_config, groups)
+            memo[key] = compose(master_config, list(groups))
         cfg = copy.deepcopy(memo[key])
         if not values:
             return cfg
